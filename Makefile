@@ -1,0 +1,40 @@
+# lbscene: two commands on a fresh machine — `make demo` and `make test`.
+# Each target creates/updates the virtual environment first; a second run skips the install.
+SHELL := /bin/bash
+PYTHON ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.lbscene-installed
+# Headless GL through Mesa's EGL (llvmpipe) on machines without a GPU.
+export PYOPENGL_PLATFORM ?= egl
+
+.PHONY: venv demo test test-all bench schemas clean
+
+$(STAMP): pyproject.toml constraints.txt scripts/install-system-deps.sh
+	bash scripts/install-system-deps.sh
+	@command -v $(PYTHON) >/dev/null || { echo "need $(PYTHON)"; exit 2; }
+	[ -x $(BIN)/python ] || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade "pip>=24" "setuptools>=68" wheel
+	# constraints.txt pins numpy<2 (bpy 5.0); every install goes through it.
+	$(BIN)/python -m pip install -q -c constraints.txt -e ".[bake,dev]"
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	bash scripts/demo.sh
+
+test: $(STAMP)
+	$(BIN)/pytest -q
+
+test-all: $(STAMP)
+	$(BIN)/pytest -q -m ""
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run_all.py
+
+schemas: $(STAMP)
+	$(BIN)/python -m lbscene.schemas.export
+
+clean:
+	rm -rf build .pytest_cache

@@ -1,0 +1,146 @@
+"""
+``lbscene build``: compile a booth and write its build folder, atomically and
+deterministically.
+
+Layout of a build folder::
+
+    manifest.json               what was built: booth, IR hash, files and their sha256
+    scene.ir.json               the scene IR (canonical JSON)
+    scene.usda                  USD stage, every lamp visible
+    usd_plugin/                 the codeless lbscene schema (set PXR_PLUGINPATH_NAME to it)
+    lighting/<NAME>/scene.usda  USD stage with only that configuration's lamps visible
+    lighting/<NAME>/...         products of registered writers (bake jobs, render graphs)
+
+Everything is written into a temporary sibling folder that replaces the old
+build only when complete: an interrupted build leaves the previous one intact.
+Same inputs → byte-identical files (no timestamps; canonical JSON).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from importlib import import_module
+from pathlib import Path
+from typing import Callable
+
+from .diagnostics import LbsceneUserError
+from .ir import SceneIR, canonical_json
+
+__all__ = ["BuildResult", "build_booth", "PRODUCT_WRITERS", "atomic_replace_dir", "write_atomic"]
+
+#: Writers of per-lighting products: (module, function).  The function is called as
+#: ``fn(ir, lighting_name, folder) -> list[Path]``; a module that is not installed is skipped.
+PRODUCT_WRITERS: list[tuple[str, str]] = [
+    ("lbscene.bakers.from_ir", "write_build_products"),
+    ("lbscene.runtimes.graph", "write_build_products"),
+]
+
+
+@dataclass
+class BuildResult:
+    out_dir: Path
+    ir_hash: str
+    booth_name: str
+    lightings: list[str]
+    files: dict[str, str] = field(default_factory=dict)   # relative path → sha256
+    skipped_writers: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"out_dir": str(self.out_dir), "ir_hash": self.ir_hash, "booth": self.booth_name,
+                "lightings": self.lightings, "files": self.files,
+                "skipped_writers": self.skipped_writers}
+
+
+def write_atomic(path: Path, data: bytes | str) -> None:
+    """Write a file through a temporary sibling and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    raw = data.encode() if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(raw)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_replace_dir(tmp_dir: Path, out_dir: Path) -> None:
+    """Move a finished folder into place, replacing ``out_dir`` (old one kept until then)."""
+    out_dir = Path(out_dir)
+    old = None
+    if out_dir.exists():
+        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
+        os.replace(out_dir, old)
+    os.replace(tmp_dir, out_dir)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
+                progress: Callable[[str], None] | None = None, allowed_dirs=()) -> BuildResult:
+    """Compile ``booth_path`` and write the build folder ``out_dir``."""
+    from .compile import compile_booth
+    from .usd_stage import SCHEMA_DIR, write_stage
+
+    step = progress or (lambda msg: None)
+    step("compile")
+    ir: SceneIR = compile_booth(booth_path, allowed_dirs=allowed_dirs)
+    if lighting is not None and lighting not in ir.lighting:
+        raise LbsceneUserError.single(
+            "LB500", f"booth has no lighting configuration {lighting!r}", str(booth_path),
+            value=repr(lighting), expected=f"one of {', '.join(ir.lighting)}")
+    lightings = [lighting] if lighting else list(ir.lighting)
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    result = BuildResult(out_dir=out_dir, ir_hash=ir.content_hash, booth_name=ir.booth_name,
+                         lightings=lightings)
+    try:
+        (tmp / "scene.ir.json").write_text(ir.to_json())
+        step("usd")
+        write_stage(ir, tmp / "scene.usda")
+        plug = tmp / "usd_plugin"
+        plug.mkdir()
+        for name in ("plugInfo.json", "generatedSchema.usda"):
+            shutil.copyfile(SCHEMA_DIR / name, plug / name)
+        writers = []
+        for mod_name, fn_name in PRODUCT_WRITERS:
+            try:
+                writers.append(getattr(import_module(mod_name), fn_name))
+            except (ModuleNotFoundError, AttributeError):
+                result.skipped_writers.append(mod_name)
+        for name in lightings:
+            step(f"lighting {name}")
+            folder = tmp / "lighting" / name
+            folder.mkdir(parents=True)
+            write_stage(ir, folder / "scene.usda", lighting=name)
+            for fn in writers:
+                fn(ir, name, folder)
+        files = sorted(p for p in tmp.rglob("*") if p.is_file())
+        result.files = {p.relative_to(tmp).as_posix(): _sha256(p) for p in files}
+        from lbscene import __version__
+
+        manifest = {"lbscene_version": __version__, "booth": ir.booth_name,
+                    "booth_source": ir.booth_source, "ir_hash": ir.content_hash,
+                    "ir_version": ir.ir_version, "lightings": lightings, "files": result.files,
+                    "units": {"length": "mm", "spectral_intensity": "W·sr⁻¹·nm⁻¹",
+                              "bands": ir.bands}}
+        (tmp / "manifest.json").write_text(json.dumps(json.loads(canonical_json(manifest)),
+                                                      indent=2, sort_keys=True, ensure_ascii=False) + "\n")
+        step("finish")
+        atomic_replace_dir(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return result

@@ -1,0 +1,261 @@
+"""
+Safe, bounded YAML reading that remembers where every value came from.
+
+Untrusted booth files are read with ruamel.yaml's *composer* only: we walk the
+node graph ourselves, so that
+
+* no Python object is ever constructed from a tag (only plain scalars, lists
+  and mappings; any explicit non-standard tag is an error),
+* anchors/aliases are allowed but their *expanded* size is computed on the
+  node graph before anything is built (a "billion laughs" file is an error,
+  not a hang),
+* duplicate keys are errors, and
+* every value's ``(line, column)`` is recorded in a :class:`PositionMap`
+  keyed by its path, so pydantic errors can be mapped back onto the file.
+
+Examples
+--------
+>>> doc = load_yaml_text("a:\\n  b: [1, 2]\\n", "x.yaml")
+>>> doc.data
+{'a': {'b': [1, 2]}}
+>>> doc.positions.locate(("a", "b", 1))
+SourceLocation(file='x.yaml', line=2, column=10)
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.error import MarkedYAMLError, YAMLError
+from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+
+from .diagnostics import Diagnostic, LbsceneUserError, SourceLocation
+
+__all__ = [
+    "MAX_YAML_BYTES",
+    "MAX_EXPANDED_NODES",
+    "PositionMap",
+    "YamlDocument",
+    "load_yaml_file",
+    "load_yaml_text",
+    "read_text_bounded",
+]
+
+#: Largest YAML document accepted (booth files are a few kB).
+MAX_YAML_BYTES = 4 * 1024 * 1024
+#: Largest number of nodes after alias expansion.
+MAX_EXPANDED_NODES = 200_000
+#: Deepest nesting accepted.
+MAX_DEPTH = 64
+
+_STD = "tag:yaml.org,2002:"
+_ALLOWED_TAGS = {_STD + t for t in ("str", "int", "float", "bool", "null", "map", "seq")}
+
+Path_ = tuple  # a path into the document: keys and list indices
+
+
+@dataclass
+class PositionMap:
+    """Maps a document path (tuple of keys/indices) to its position.
+
+    ``key_positions`` holds where a mapping *key* starts (used for
+    "unknown key" errors); ``positions`` where the *value* starts.
+    """
+
+    file: str
+    positions: dict[Path_, tuple[int, int]]
+    key_positions: dict[Path_, tuple[int, int]]
+
+    def locate(self, path: Path_, *, key: bool = False) -> SourceLocation:
+        """Best location for ``path``: the path itself or its nearest parent."""
+        path = tuple(path)
+        table = self.key_positions if key else self.positions
+        while True:
+            if path in table:
+                line, col = table[path]
+                return SourceLocation(self.file, line, col)
+            if key and path in self.positions:
+                line, col = self.positions[path]
+                return SourceLocation(self.file, line, col)
+            if not path:
+                return SourceLocation(self.file, 1, 1)
+            path = path[:-1]
+
+
+@dataclass
+class YamlDocument:
+    """Plain data (dict/list/str/int/float/bool/None) plus positions."""
+
+    data: Any
+    positions: PositionMap
+    path: Path | None = None
+
+    @property
+    def file(self) -> str:
+        return self.positions.file
+
+
+def read_text_bounded(path: Path, display: str, max_bytes: int) -> str:
+    """Read a text file with a size bound and a clear error for binary data."""
+    try:
+        size = path.stat().st_size
+    except FileNotFoundError:
+        raise LbsceneUserError.single("LB010", "file not found", display)
+    if path.is_dir():
+        raise LbsceneUserError.single("LB011", "expected a file, got a directory", display)
+    if size > max_bytes:
+        raise LbsceneUserError.single(
+            "LB004", "file is too large", display,
+            value=f"{size} bytes", expected=f"at most {max_bytes} bytes")
+    raw = path.read_bytes()
+    if b"\x00" in raw:
+        raise LbsceneUserError.single(
+            "LB003", "file contains NUL bytes: binary data, not text", display,
+            expected="a UTF-8 text file")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise LbsceneUserError.single(
+            "LB003", "file is not valid UTF-8 text", display, line, col,
+            value=f"byte 0x{raw[exc.start]:02x}", expected="UTF-8 text")
+
+
+def load_yaml_file(path: Path | str, display: str | None = None,
+                   max_bytes: int = MAX_YAML_BYTES) -> YamlDocument:
+    """Read and parse a YAML file safely.  Raises :class:`LbsceneUserError`."""
+    path = Path(path)
+    display = display or str(path)
+    text = read_text_bounded(path, display, max_bytes)
+    doc = load_yaml_text(text, display)
+    doc.path = path
+    return doc
+
+
+def _mark(node_or_mark) -> tuple[int, int]:
+    m = getattr(node_or_mark, "start_mark", node_or_mark)
+    return (m.line + 1, m.column + 1)
+
+
+def load_yaml_text(text: str, display: str) -> YamlDocument:
+    """Parse YAML text; see module docstring for the safety rules."""
+    yaml = YAML(typ="rt", pure=True)
+    try:
+        nodes = list(yaml.compose_all(io.StringIO(text)))
+    except MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line, col = _mark(mark) if mark else (0, 0)
+        msg = (exc.problem or "syntax error").strip()
+        if exc.context:
+            msg = f"{exc.context.strip()}: {msg}"
+        raise LbsceneUserError.single("LB001", f"YAML syntax error: {msg}", display, line, col)
+    except YAMLError as exc:  # pragma: no cover - ruamel raises Marked* in practice
+        raise LbsceneUserError.single("LB001", f"YAML error: {exc}", display)
+    except RecursionError:
+        raise LbsceneUserError.single("LB005", "YAML nesting is too deep", display,
+                                      expected=f"at most {MAX_DEPTH} levels")
+    nodes = [n for n in nodes if n is not None]
+    if not nodes:
+        raise LbsceneUserError.single("LB002", "document is empty", display, 1, 1,
+                                      expected="a YAML mapping with a 'version:' key")
+    if len(nodes) > 1:
+        line, col = _mark(nodes[1])
+        raise LbsceneUserError.single("LB006", "more than one YAML document in the file",
+                                      display, line, col, expected="a single document")
+    root = nodes[0]
+    _check_expansion(root, display)
+    walker = _Walker(display)
+    data = walker.build(root, ())
+    return YamlDocument(data, PositionMap(display, walker.positions, walker.key_positions))
+
+
+def _check_expansion(root: Node, display: str) -> None:
+    """Count nodes after alias expansion without expanding (memoised on identity)."""
+    memo: dict[int, int] = {}
+    on_stack: set[int] = set()
+
+    def size(node: Node, depth: int) -> int:
+        if depth > MAX_DEPTH:
+            line, col = _mark(node)
+            raise LbsceneUserError.single("LB005", "YAML nesting is too deep", display, line, col,
+                                          expected=f"at most {MAX_DEPTH} levels")
+        key = id(node)
+        if key in memo:
+            return memo[key]
+        if key in on_stack:
+            line, col = _mark(node)
+            raise LbsceneUserError.single("LB005", "recursive YAML alias", display, line, col)
+        on_stack.add(key)
+        total = 1
+        if isinstance(node, SequenceNode):
+            for child in node.value:
+                total += size(child, depth + 1)
+        elif isinstance(node, MappingNode):
+            for k, v in node.value:
+                total += size(k, depth + 1) + size(v, depth + 1)
+        on_stack.discard(key)
+        memo[key] = total
+        if total > MAX_EXPANDED_NODES:
+            line, col = _mark(node)
+            raise LbsceneUserError.single(
+                "LB005", "aliases expand to too many values (alias bomb?)", display, line, col,
+                value=f"more than {MAX_EXPANDED_NODES} values",
+                expected=f"at most {MAX_EXPANDED_NODES}")
+        return total
+
+    size(root, 0)
+
+
+class _Walker:
+    """Turns a composed node graph into plain data, recording positions."""
+
+    def __init__(self, display: str):
+        self.display = display
+        self.positions: dict[Path_, tuple[int, int]] = {}
+        self.key_positions: dict[Path_, tuple[int, int]] = {}
+        # ruamel's safe constructor resolves plain scalars (ints, floats, bools, nulls)
+        self._constructor = YAML(typ="safe", pure=True).constructor
+
+    def _error(self, node: Node, code: str, message: str, **kw) -> LbsceneUserError:
+        line, col = _mark(node)
+        return LbsceneUserError.single(code, message, self.display, line, col, **kw)
+
+    def build(self, node: Node, path: Path_) -> Any:
+        self.positions.setdefault(path, _mark(node))
+        tag = node.tag.value if hasattr(node.tag, "value") else node.tag
+        if tag not in _ALLOWED_TAGS:
+            raise self._error(node, "LB006", "YAML tag not allowed", value=str(tag),
+                              expected="plain scalars, lists and mappings (no tags)")
+        if isinstance(node, ScalarNode):
+            if tag == _STD + "str":
+                return str(node.value)
+            try:
+                return self._constructor.construct_object(node, deep=True)
+            except Exception as exc:  # malformed scalar for its resolved tag
+                raise self._error(node, "LB001", f"cannot read scalar: {exc}", value=repr(node.value))
+        if isinstance(node, SequenceNode):
+            return [self.build(child, path + (i,)) for i, child in enumerate(node.value)]
+        if isinstance(node, MappingNode):
+            out: dict[Any, Any] = {}
+            for knode, vnode in node.value:
+                if not isinstance(knode, ScalarNode):
+                    raise self._error(knode, "LB006", "mapping keys must be plain scalars")
+                if knode.value == "<<":
+                    raise self._error(knode, "LB006", "YAML merge keys ('<<') are not supported",
+                                      expected="explicit keys (anchors/aliases on whole values are fine)")
+                key = self.build(knode, path + ("<key>",))
+                if not isinstance(key, (str, int)) or isinstance(key, bool):
+                    raise self._error(knode, "LB101", "mapping key must be a string",
+                                      value=repr(key))
+                if key in out:
+                    raise self._error(knode, "LB007", f"duplicate key {key!r}")
+                self.key_positions[path + (key,)] = _mark(knode)
+                out[key] = self.build(vnode, path + (key,))
+            self.positions.pop(path + ("<key>",), None)
+            return out
+        raise self._error(node, "LB006", "unsupported YAML node")  # pragma: no cover

@@ -1,0 +1,5 @@
+import sys
+
+from lbscene.cli import main
+
+sys.exit(main())

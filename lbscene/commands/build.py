@@ -1,0 +1,65 @@
+"""``lbscene build BOOTH [--lighting NAME] [--out DIR]``"""
+
+from __future__ import annotations
+
+import json
+import time
+from enum import Enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("build")
+    def build(
+        booth: Path = typer.Argument(..., help="Booth folder (with booth.yaml) or booth file."),
+        lighting: Optional[str] = typer.Option(None, "--lighting", "-l",
+                                               help="Only this lighting configuration."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o",
+                                           help="Build folder (default: build/<booth folder name>)."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+        allow_path: Optional[List[Path]] = typer.Option(
+            None, "--allow-path", help="Extra folder file references may point into."),
+    ) -> None:
+        """Compile a booth: scene IR, USD stage, bake jobs and render graphs, written atomically."""
+        from rich.console import Console
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.table import Table
+
+        from lbscene.engine.build import build_booth
+        from lbscene.engine.compile import find_booth_file
+
+        booth_file = find_booth_file(booth)
+        out_dir = out or Path("build") / booth_file.resolve().parent.name
+        console = Console(stderr=True)
+        t0 = time.perf_counter()
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                      console=console, transient=True, disable=format is Format.json) as prog:
+            task = prog.add_task("build", total=None)
+            result = build_booth(booth_file, out_dir, lighting,
+                                 progress=lambda msg: prog.update(task, description=f"build: {msg}"),
+                                 allowed_dirs=tuple(allow_path or ()))
+        elapsed = time.perf_counter() - t0
+        if format is Format.json:
+            d = result.to_json()
+            d["elapsed_s"] = round(elapsed, 3)
+            typer.echo(json.dumps(d, indent=2, ensure_ascii=False))
+            return
+        table = Table(title=f"{result.booth_name} → {result.out_dir}")
+        table.add_column("file")
+        table.add_column("sha256", style="dim")
+        for name, digest in result.files.items():
+            table.add_row(name, digest[:16])
+        Console().print(table)
+        typer.echo(f"IR {result.ir_hash[:16]}  lightings: {', '.join(result.lightings)}  "
+                   f"({elapsed:.2f} s)")
+        for w in result.skipped_writers:
+            typer.echo(f"note: {w} is not available in this build; its products were not written",
+                       err=True)

@@ -1,0 +1,46 @@
+"""
+The render configuration: what ``lbscene render CONFIG.yaml`` draws.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from .base import Document, StrictModel, Vec3_mm
+from .booth import GeometryName
+from .refs import FileRef
+
+__all__ = ["RenderConfig", "Camera", "RenderOutput"]
+
+
+class Camera(StrictModel):
+    """Camera; default: the booth's observer looking at the sample."""
+
+    type: Literal["observer", "free"] = "observer"
+    position_mm: Vec3_mm | None = None
+    look_at_mm: Vec3_mm | None = None
+    vertical_fov_deg: float = Field(30.0, gt=1, lt=170)
+
+
+class RenderOutput(StrictModel):
+    png: str = Field("render.png", description="Display-encoded image, relative to the config file.")
+    xyz: str | None = Field(None, description="Float XYZ image (.exr or .npy) for analysis.")
+    width_px: int = Field(1024, ge=16, le=8192)
+    height_px: int = Field(768, ge=16, le=8192)
+
+
+class RenderConfig(Document):
+    """Booth, lighting, geometry, sample, display and camera of one rendering."""
+
+    kind: Literal["render_config"] = Field(description="Document kind.")
+    booth: str = Field(description="Booth folder or booth.yaml (relative to this file; may be outside "
+                                   "this file's folder).")
+    lighting: str = Field(description="Lighting configuration name of the booth.")
+    geometry: GeometryName | None = Field(None, description="Viewing geometry (booths that have them).")
+    sample: FileRef = Field(description="Sample document.")
+    display: str = Field(description="Display document (path; may be outside this file's folder).")
+    bake: str | None = Field(None, description="Bake output folder (default: the build folder's bakes).")
+    camera: Camera = Camera()
+    output: RenderOutput = RenderOutput()

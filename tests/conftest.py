@@ -1,0 +1,39 @@
+"""Shared test fixtures."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).resolve().parent / "data"
+BOOTHS = REPO / "booths"
+
+
+@pytest.fixture
+def minimal_booth(tmp_path) -> Path:
+    """A writable copy of tests/data/minimal-booth."""
+    dst = tmp_path / "minimal-booth"
+    shutil.copytree(DATA / "minimal-booth", dst)
+    return dst
+
+
+@pytest.fixture
+def run_cli(monkeypatch):
+    """Run the lbscene CLI in-process; returns (exit code, stdout, stderr)."""
+    from lbscene.cli import main
+
+    def run(*args, cwd: Path | None = None):
+        import contextlib
+        import io
+
+        if cwd is not None:
+            monkeypatch.chdir(cwd)
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main([str(a) for a in args])
+        return code, out.getvalue(), err.getvalue()
+
+    return run

@@ -1,0 +1,79 @@
+"""Compilation to the scene IR: absolute lamp output against closed forms."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lbscene.engine.compile import compile_booth
+from lbscene.engine.spectra import luminous_efficacy_sum
+
+
+def _set_lamp(booth_dir, text_old, text_new):
+    f = booth_dir / "booth.yaml"
+    s = f.read_text()
+    assert text_old in s
+    f.write_text(s.replace(text_old, text_new))
+
+
+def test_point_lamp_inverse_square_law(minimal_booth):
+    ir = compile_booth(minimal_booth)
+    lamp = ir.lamps[0]
+    assert lamp.peak_luminous_intensity_cd == pytest.approx(1000.0, rel=1e-9)
+    # isotropic: flux = 4π I
+    assert lamp.luminous_flux_lm == pytest.approx(4 * math.pi * 1000.0, rel=1e-4)
+    # E = I / d² with d = 0.7 m straight below the lamp
+    lx = luminous_efficacy_sum(ir.lighting_spd_1nm("A"))
+    assert lx == pytest.approx(1000.0 / 0.7**2, rel=1e-6)
+    # 0.4 m to the side: E = I cos θ / d² with cos θ = 0.7/d
+    d = math.hypot(0.4, 0.7)
+    lx_side = luminous_efficacy_sum(ir.lighting_spd_1nm("A", (400.0, 0.0, 0.0)))
+    assert lx_side == pytest.approx(1000.0 * (0.7 / d) / d**2, rel=1e-6)
+
+
+def test_cosine_power_flux_closed_form(minimal_booth):
+    _set_lamp(minimal_booth, "output: {type: peak_intensity_cd, value_cd: 1000}",
+              "output: {type: luminous_flux_lm, value_lm: 1000}\n    profile: {type: cosine_power, exponent: 2}")
+    ir = compile_booth(minimal_booth)
+    # Φ = I0 · 2π/(n+1)  →  I0 = 1000 · 3 / 2π
+    assert ir.lamps[0].peak_luminous_intensity_cd == pytest.approx(1000 * 3 / (2 * math.pi), rel=1e-4)
+
+
+def test_illuminance_output_reproduces_requested_lux(minimal_booth):
+    _set_lamp(minimal_booth, "output: {type: peak_intensity_cd, value_cd: 1000}",
+              "output: {type: illuminance_at_point_lx, value_lx: 1500, point_mm: [0, 0, 0]}")
+    ir = compile_booth(minimal_booth)
+    assert luminous_efficacy_sum(ir.lighting_spd_1nm("A")) == pytest.approx(1500, rel=1e-9)
+    assert ir.lamps[0].peak_luminous_intensity_cd == pytest.approx(1500 * 0.49, rel=1e-9)
+
+
+def test_illuminant_a_spd_matches_cie_table(minimal_booth):
+    # CIE illuminant A is tabulated relative to 100 at 560 nm; the IR keeps the shape (1 at 560 nm)
+    ir = compile_booth(minimal_booth)
+    spd = ir.lamps[0].spd.array_1nm
+    wl = np.arange(360, 831)
+    assert spd[wl == 560][0] == pytest.approx(1.0)
+    # CIE 15:2004 eq. for illuminant A: S(λ) = 100 (560/λ)^5 (e^(c2/(2848·560)) − 1)/(e^(c2/(2848 λ)) − 1),
+    # c2 = 1.435e7 nm·K  →  S(400) = 14.708, S(700) = 198.26 (relative to 100 at 560 nm)
+    assert spd[wl == 400][0] == pytest.approx(0.14708, rel=1e-3)
+    assert spd[wl == 700][0] == pytest.approx(1.9826, rel=1e-3)
+
+
+def test_ir_hash_is_stable_and_content_sensitive(minimal_booth):
+    a = compile_booth(minimal_booth)
+    b = compile_booth(minimal_booth)
+    assert a.content_hash == b.content_hash and a.to_json() == b.to_json()
+    _set_lamp(minimal_booth, "value_cd: 1000", "value_cd: 1001")
+    assert compile_booth(minimal_booth).content_hash != a.content_hash
+
+
+def test_box_surfaces_face_inward(minimal_booth):
+    ir = compile_booth(minimal_booth)
+    centre = np.array([0.0, 0.0, 400.0])
+    for s in ir.surfaces:
+        v = s.vertex_array
+        for t in s.triangle_array:
+            n = np.cross(v[t[1]] - v[t[0]], v[t[2]] - v[t[0]])
+            assert n @ (centre - v[t[0]]) > 0, s.id
+    roles = sorted(s.role for s in ir.surfaces)
+    assert roles == ["ceiling", "floor", "left_wall", "rear_wall", "right_wall"]  # open front
