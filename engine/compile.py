@@ -135,9 +135,21 @@ def _rotation_matrix_xyz(deg) -> np.ndarray:
     return mz @ my @ mx
 
 
+#: Largest mesh file accepted (booth geometry is small; this bounds untrusted input).
+MAX_MESH_BYTES = 64 * 1024 * 1024
+
+
+def _check_mesh_size(path: Path, display: str) -> None:
+    size = path.stat().st_size
+    if size > MAX_MESH_BYTES:
+        raise LbsceneUserError.single("LB004", "mesh file is too large", display,
+                                      value=f"{size} bytes", expected=f"at most {MAX_MESH_BYTES} bytes")
+
+
 def _mesh_from_obj(path: Path, display: str) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
+    _check_mesh_size(path, display)
     try:
         scene_or_mesh = trimesh.load(str(path), file_type="obj", force="mesh", process=False)
     except Exception as exc:
@@ -152,9 +164,14 @@ def _mesh_from_obj(path: Path, display: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _meshes_from_usd(path: Path, display: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    from pxr import Usd, UsdGeom
+    from pxr import Tf, Usd, UsdGeom
 
-    stage = Usd.Stage.Open(str(path))
+    _check_mesh_size(path, display)
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Tf.ErrorException as exc:
+        raise LbsceneUserError.single("LB203", f"cannot open USD file: {str(exc).strip()[:300]}", display,
+                                      expected="a USD stage (.usda/.usdc/.usd)")
     if stage is None:
         raise LbsceneUserError.single("LB203", "cannot open USD file", display,
                                       expected="a USD stage (.usda/.usdc/.usd)")
@@ -170,7 +187,8 @@ def _meshes_from_usd(path: Path, display: str) -> list[tuple[str, np.ndarray, np
         idx = list(mesh.GetFaceVertexIndicesAttr().Get() or [])
         if not len(pts) or not counts:
             continue
-        m = np.asarray(cache.GetLocalToWorldTransform(prim), float)  # row-vector convention
+        gm = cache.GetLocalToWorldTransform(prim)  # Gf matrices use the row-vector convention
+        m = np.array([[gm[i][j] for j in range(4)] for i in range(4)], float)
         pts_h = np.c_[pts, np.ones(len(pts))] @ m
         tris, k = [], 0
         for c in counts:

@@ -1,0 +1,60 @@
+"""OBJ and USD geometry enter the IR with their transforms (units: mm)."""
+
+import numpy as np
+import pytest
+
+from lbscene.engine.compile import compile_booth
+from lbscene.engine.diagnostics import LbsceneUserError
+
+OBJ_QUAD = """# a 1 x 2 quad in metres, in the xy plane
+v 0 0 0
+v 1 0 0
+v 1 2 0
+v 0 2 0
+f 1 2 3 4
+"""
+
+
+def _add_geometry(booth_dir, entry: str):
+    f = booth_dir / "booth.yaml"
+    f.write_text(f.read_text() + "geometry_files:\n" + entry)
+
+
+def test_obj_mesh_scaled_rotated_translated(minimal_booth):
+    (minimal_booth / "quad.obj").write_text(OBJ_QUAD)
+    _add_geometry(minimal_booth, "  - {type: obj, id: quad, path: quad.obj, material: grey,\n"
+                  "     transform: {scale: 100, rotate_xyz_deg: [0, 0, 90], translate_mm: [10, 20, 30]}}\n")
+    ir = compile_booth(minimal_booth)
+    s = next(s for s in ir.surfaces if s.id == "quad")
+    assert s.role == "mesh" and s.source == "obj:quad.obj" and len(s.triangles) == 2
+    v = s.vertex_array
+    # (1, 2, 0) m-units ×100 → (100, 200, 0) mm, rotated 90° about z → (-200, 100, 0), + (10, 20, 30)
+    assert v[2] == pytest.approx([-190.0, 120.0, 30.0])
+    assert s.area_mm2() == pytest.approx(100 * 200)
+
+
+def test_usd_mesh_in_metres_converted_to_mm(minimal_booth):
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(str(minimal_booth / "prop.usda"))
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    UsdGeom.Xform.Define(stage, "/Prop")
+    mesh = UsdGeom.Mesh.Define(stage, "/Prop/Tri")
+    mesh.CreatePointsAttr([Gf.Vec3f(0, 0, 0), Gf.Vec3f(0.1, 0, 0), Gf.Vec3f(0, 0.1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    UsdGeom.Xformable(stage.GetPrimAtPath("/Prop")).AddTranslateOp().Set(Gf.Vec3d(0, 0, 0.5))
+    stage.Save()
+    _add_geometry(minimal_booth, "  - {type: usd, id: prop, path: prop.usda, material: grey}\n")
+    ir = compile_booth(minimal_booth)
+    s = next(s for s in ir.surfaces if s.id == "prop.Tri")
+    np.testing.assert_allclose(s.vertex_array, [[0, 0, 500], [100, 0, 500], [0, 100, 500]], atol=1e-4)
+
+
+def test_garbage_obj_is_a_located_error(minimal_booth):
+    (minimal_booth / "bad.obj").write_bytes(b"this is not an obj file\n")
+    _add_geometry(minimal_booth, "  - {type: obj, id: bad, path: bad.obj, material: grey}\n")
+    with pytest.raises(LbsceneUserError) as exc:
+        compile_booth(minimal_booth)
+    d = exc.value.diagnostics[0]
+    assert d.code == "LB203" and d.location.file == "bad.obj"
