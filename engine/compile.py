@@ -84,7 +84,7 @@ def compile_booth(path: Path | str, grid: BandGrid = DEFAULT_GRID,
     from .lint import lint_booth
 
     bag = DiagnosticBag()
-    bag.extend(lint_booth(doc))
+    bag.extend(lint_booth(doc, illuminance=False))
     bag.raise_if_errors()
     return compile_loaded(doc, grid)
 

@@ -76,8 +76,12 @@ def _spec_coverage(spec, doc: LoadedDocument) -> tuple[float, float] | None:
     return None
 
 
-def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
-    """All semantic diagnostics of a schema-valid booth document."""
+def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnostic]:
+    """All semantic diagnostics of a schema-valid booth document.
+
+    ``illuminance=False`` skips the viewing-standard warnings (they compile the
+    booth; the compiler itself runs the error rules only).
+    """
     from .compile import validate_effects
     from .spectra import evaluate_spectrum
 
@@ -227,7 +231,7 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
         check_spectrum(lp.spd, "emission", ("lamps", i, "spd"), f"SPD of lamp '{lp.id}'")
 
     # ---- illuminance vs viewing standards (warning), only when the document is otherwise sound
-    if not any(d.severity is Severity.ERROR for d in diags):
+    if illuminance and not any(d.severity is Severity.ERROR for d in diags):
         diags.extend(_illuminance_rules(doc))
 
     # ---- provenance (info)
