@@ -245,6 +245,10 @@ def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
         scale = out.value_cd / lum_per_unit
     elif out.type == "luminous_flux_lm":
         scale = out.value_lm / (lum_per_unit * omega)
+    elif out.type == "peak_radiant_intensity_W_sr":
+        scale = out.value_W_sr / float(spd.sum())      # Σ over the 1 nm grid = ∫ dλ
+    elif out.type == "radiant_flux_W":
+        scale = out.value_W / (float(spd.sum()) * omega)
     else:  # illuminance at a point, base point-source model, upward receiver
         tmp = IRLamp(id=lamp.id, group=lamp.group or lamp.id, kind=lamp.type,
                      position_mm=lamp.position_mm, axis=_unit(lamp.axis), aim=tuple(aim),

@@ -190,8 +190,23 @@ class IlluminanceOutput(StrictModel):
     point_mm: Vec3_mm = (0.0, 0.0, 0.0)
 
 
+class RadiantIntensityOutput(StrictModel):
+    """Peak radiant intensity (360–830 nm) of the whole lamp along its aim: for UV sources."""
+
+    type: Literal["peak_radiant_intensity_W_sr"]
+    value_W_sr: float = Field(gt=0, le=1e5)
+
+
+class RadiantFluxOutput(StrictModel):
+    """Total radiant flux (360–830 nm) of the bare lamp: for UV sources."""
+
+    type: Literal["radiant_flux_W"]
+    value_W: float = Field(gt=0, le=1e5)
+
+
 LampOutput = Annotated[
-    Union[LuminousIntensityOutput, LuminousFluxOutput, IlluminanceOutput],
+    Union[LuminousIntensityOutput, LuminousFluxOutput, IlluminanceOutput, RadiantIntensityOutput,
+          RadiantFluxOutput],
     Field(discriminator="type"),
 ]
 

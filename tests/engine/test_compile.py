@@ -77,3 +77,15 @@ def test_box_surfaces_face_inward(minimal_booth):
             assert n @ (centre - v[t[0]]) > 0, s.id
     roles = sorted(s.role for s in ir.surfaces)
     assert roles == ["ceiling", "floor", "left_wall", "rear_wall", "right_wall"]  # open front
+
+
+def test_radiant_output_for_uv_lamps(minimal_booth):
+    # an inline UVA line 360-380 nm (triangle, no visible light): radiant intensity is ∫ I_λ dλ
+    _set_lamp(minimal_booth, "spd: {type: cie_illuminant, name: A}\n    output: {type: peak_intensity_cd, value_cd: 1000}",
+              "spd: {type: inline, wavelengths_nm: [360, 370, 380, 720], values: [0, 1, 0, 0]}\n"
+              "    output: {type: radiant_flux_W, value_W: 2.0}\n    profile: {type: cosine_power, exponent: 1}")
+    ir = compile_booth(minimal_booth)
+    lamp = ir.lamps[0]
+    # cosine emitter: Φ = π I0  →  ∫ I0_λ dλ = 2/π W/sr
+    assert lamp.peak_intensity_1nm.sum() == pytest.approx(2.0 / math.pi, rel=1e-3)
+    assert lamp.peak_luminous_intensity_cd == pytest.approx(0.0, abs=1e-9)
