@@ -216,7 +216,7 @@ def _file_surfaces(doc: LoadedDocument) -> list[IRSurface]:
                 id=pid, role="mesh", material=g.material,
                 vertices_mm=tuple(tuple(float(f"{c:.9g}") for c in row) for row in v),
                 triangles=tuple(tuple(int(i) for i in tri) for tri in f),
-                source=f"{g.type}:{g.path}"))
+                source=f"{g.type}:{g.path}", mount=g.mount))
     return out
 
 
@@ -277,7 +277,7 @@ def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
         peak_luminous_intensity_cd=float(f"{scale * lum_per_unit:.10g}"),
         luminous_flux_lm=float(f"{scale * lum_per_unit * omega:.10g}"),
         profile=profile, point_sources=lamp.point_sources, filter=lamp.filter,
-        reflector=lamp.reflector)
+        reflector=lamp.reflector, mount=lamp.mount)
 
 
 # --------------------------------------------------------------------------- compile
@@ -343,7 +343,7 @@ def compile_loaded(doc: LoadedDocument, grid: BandGrid = DEFAULT_GRID) -> SceneI
     occluders = tuple(IROccluder(id=o.id, type=o.type, centre_mm=o.centre_mm, normal=_unit(o.normal),
                                  u_axis=_unit(o.u_axis), size_mm=o.size_mm, opening_mm=o.opening_mm,
                                  lamps=tuple(o.lamps) if o.lamps is not None else None,
-                                 material=o.material)
+                                 material=o.material, mount=o.mount)
                       for o in booth.occluders)
     lighting = {name: IRLighting(name=name, lamps=tuple(c.lamps), dimming=dict(c.dimming),
                                  description=c.description,

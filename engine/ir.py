@@ -105,6 +105,7 @@ class IRSurface(_IR):
     vertices_mm: tuple[Vec3, ...]
     triangles: tuple[tuple[int, int, int], ...]
     source: str = "parametric"     # parametric, obj:<path>, usd:<path>
+    mount: str = "booth"           # 'platform': rotates with the platform (coordinates at rotation 0)
 
     @property
     def vertex_array(self) -> np.ndarray:
@@ -139,6 +140,7 @@ class IRLamp(_IR):
     point_sources: int
     filter: str | None = None
     reflector: str | None = None
+    mount: str = "booth"
 
     @property
     def peak_intensity_1nm(self) -> np.ndarray:
@@ -146,9 +148,20 @@ class IRLamp(_IR):
         return self.intensity_scale_W_sr_nm * self.spd.array_1nm
 
     def point_positions_mm(self, n: int | None = None) -> np.ndarray:
-        """Centres of ``n`` equal segments along the lamp (tubes/panels), shape (n, 3)."""
+        """Point-source positions: centres of ``n`` equal segments along a tube, a grid of about
+        ``n`` equal cells over a panel (length × width), the centre otherwise; shape (k, 3)."""
         n = n or self.point_sources
         p = np.asarray(self.position_mm, float)
+        if self.kind == "panel" and self.length_mm > 0 and self.width_mm > 0:
+            nu = max(1, int(round(np.sqrt(n * self.length_mm / self.width_mm))))
+            nv = max(1, int(round(n / nu)))
+            ax = np.asarray(self.axis, float)
+            wdir = np.cross(np.asarray(self.aim, float), ax)
+            wdir /= np.linalg.norm(wdir)
+            su = ((np.arange(nu) + 0.5) / nu - 0.5) * self.length_mm
+            sv = ((np.arange(nv) + 0.5) / nv - 0.5) * self.width_mm
+            U, V = np.meshgrid(su, sv, indexing="ij")
+            return p + np.outer(U.ravel(), ax) + np.outer(V.ravel(), wdir)
         if self.kind in ("tube", "panel") and self.length_mm > 0:
             s = (np.arange(n) + 0.5) / n - 0.5
             return p + np.outer(s * self.length_mm, np.asarray(self.axis))
@@ -189,6 +202,7 @@ class IROccluder(_IR):
     opening_mm: tuple[float, float] | None
     lamps: tuple[str, ...] | None
     material: str | None
+    mount: str = "booth"
 
 
 class IRLighting(_IR):

@@ -64,8 +64,8 @@ def parse_geometry_name(name: str) -> tuple[float, float]:
     if not m:
         raise ValueError(f"{name!r} is not a geometry name like '45as15' (illumination 'as' aspecular)")
     ill, asp = float(m.group(1)), float(m.group(2))
-    if not 0 < ill < 90:
-        raise ValueError(f"illumination angle {ill:g}° must be between 0 and 90°")
+    if not 0 <= ill < 90:
+        raise ValueError(f"illumination angle {ill:g}° must be at least 0° and below 90°")
     view = ill - asp
     if not -90 < view < 90:
         raise ValueError(f"{name}: aspecular angle {asp:g}° puts the observer {abs(view):g}° from the "
@@ -115,6 +115,9 @@ class GeometryFile(StrictModel):
     path: FileRef
     material: Identifier = Field(description="Material (from `materials:`) applied to the meshes.")
     transform: Transform = Transform()
+    mount: Literal["booth", "platform"] = Field(
+        "booth", description="'platform': moves with the rotating platform. Coordinates are always "
+                             "written with the platform at rotation 0.")
 
 
 # --------------------------------------------------------------------------- materials
@@ -232,6 +235,9 @@ class Lamp(StrictModel):
                                description="Point sources approximating the lamp (seed: N = 100).")
     filter: Identifier | None = Field(None, description="Filter (from `filters:`) in front of the lamp.")
     reflector: Identifier | None = Field(None, description="Reflector (from `reflectors:`) behind the lamp.")
+    mount: Literal["booth", "platform"] = Field(
+        "booth", description="'platform': moves with the rotating platform. Coordinates are always "
+                             "written with the platform at rotation 0.")
     provenance: Provenance | None = None
 
     @model_validator(mode="after")
@@ -310,6 +316,9 @@ class Occluder(StrictModel):
     u_axis: Direction = (1.0, 0.0, 0.0)
     lamps: list[Identifier] | None = Field(None, description="Lamps it occludes (default: all).")
     material: Identifier | None = None
+    mount: Literal["booth", "platform"] = Field(
+        "booth", description="'platform': moves with the rotating platform. Coordinates are always "
+                             "written with the platform at rotation 0.")
 
 
 # --------------------------------------------------------------------------- lighting & viewing

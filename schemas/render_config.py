@@ -12,7 +12,7 @@ from .base import Document, StrictModel, Vec3_mm
 from .booth import GeometryName
 from .refs import FileRef
 
-__all__ = ["RenderConfig", "Camera", "RenderOutput"]
+__all__ = ["RenderConfig", "Camera", "RenderOutput", "Exposure"]
 
 
 class Camera(StrictModel):
@@ -31,6 +31,17 @@ class RenderOutput(StrictModel):
     height_px: int = Field(768, ge=16, le=8192)
 
 
+class Exposure(StrictModel):
+    """How absolute luminances are put on the display."""
+
+    mode: Literal["relative_white", "absolute"] = Field(
+        "relative_white",
+        description="relative_white: a perfect white diffuser at the sample is shown at `white_fraction` "
+                    "of the display's white luminance (chromaticities unchanged, no adaptation); "
+                    "absolute: XYZ in cd/m² as they are (clipped to the display's gamut).")
+    white_fraction: float = Field(1.0, gt=0, le=10, description="See `mode`.")
+
+
 class RenderConfig(Document):
     """Booth, lighting, geometry, sample, display and camera of one rendering."""
 
@@ -40,7 +51,13 @@ class RenderConfig(Document):
     lighting: str = Field(description="Lighting configuration name of the booth.")
     geometry: GeometryName | None = Field(None, description="Viewing geometry (booths that have them).")
     sample: FileRef = Field(description="Sample document.")
-    display: str = Field(description="Display document (path; may be outside this file's folder).")
+    display: str = Field(description="Display document (path; may be outside this file's folder), or "
+                                     "'builtin:srgb' for the sRGB reference display.")
     bake: str | None = Field(None, description="Bake output folder (default: the build folder's bakes).")
+    diffuse: Literal["auto", "baked", "analytic"] = Field(
+        "auto", description="Diffuse light: 'baked' needs bake products (an error names the bake to run), "
+                            "'analytic' uses the forward model, 'auto' the bake when there is one.")
+    exposure: Exposure = Exposure()
+    dither: bool = Field(True, description="Blue-noise dithering before 8-bit quantisation.")
     camera: Camera = Camera()
     output: RenderOutput = RenderOutput()

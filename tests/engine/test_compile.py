@@ -90,3 +90,28 @@ def test_radiant_output_for_uv_lamps(minimal_booth):
     assert lamp.peak_intensity_1nm.sum() == pytest.approx(2.0 / math.pi, rel=1e-3)
     # CIE 1924 V(λ) ≤ 3.9e-5 below 380 nm: at most 683 · (2/π) · 3.9e-5 = 0.017 cd of "visible" leak
     assert 0 < lamp.peak_luminous_intensity_cd <= 683 * (2 / math.pi) * 3.9e-5
+
+
+def test_panel_point_sources_cover_length_and_width(minimal_booth):
+    # A 400 × 100 mm Lambertian panel 0.7 m above the floor: with points spread over the whole
+    # area, the base model approaches the closed-form illuminance of a uniform rectangular
+    # Lambertian source (sum of exact corner contributions, IES handbook form).
+    _set_lamp(minimal_booth, "type: point\n    position_mm: [0, 0, 700]",
+              "type: panel\n    position_mm: [0, 0, 700]\n    length_mm: 400\n    width_mm: 100\n"
+              "    point_sources: 400")
+    _set_lamp(minimal_booth, "output: {type: peak_intensity_cd, value_cd: 1000}",
+              "output: {type: peak_intensity_cd, value_cd: 1000}\n    profile: {type: cosine_power, exponent: 1}")
+    f = minimal_booth / "booth.yaml"
+    f.write_text(f.read_text() + "effects:\n  angular_profile: {}\n")  # the model uses declared profiles
+    ir = compile_booth(minimal_booth)
+    pts = ir.lamps[0].point_positions_mm()
+    assert pts[:, 0].max() - pts[:, 0].min() > 350 and pts[:, 1].max() - pts[:, 1].min() > 70
+    # uniform Lambertian rectangle of luminance L = I0/A, receiver parallel, under its centre:
+    # E = 4 · L · [a/√(a²+h²) · atan(b/√(a²+h²)) + b/√(b²+h²) · atan(a/√(b²+h²))] / 2 (corner formula)
+    a, b, h = 0.2, 0.05, 0.7
+    L = 1000.0 / (0.4 * 0.1)
+    corner = 0.5 * (a / math.hypot(a, h) * math.atan(b / math.hypot(a, h))
+                    + b / math.hypot(b, h) * math.atan(a / math.hypot(b, h)))
+    exact = 4 * L * corner
+    lx = luminous_efficacy_sum(ir.lighting_spd_1nm("A"))
+    assert lx == pytest.approx(exact, rel=2e-3)
