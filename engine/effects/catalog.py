@@ -1,19 +1,37 @@
 """
 Built-in physical effects (ids are part of the file format: never rename).
 
-Each effect declares the parameters a booth file may give it.  The physics
-(how the forward model applies it) is implemented next to the parameters.
+Each effect declares the parameters a booth file may give it (``Params``),
+its physics as forward-model hooks (see :mod:`lbscene.engine.effects.physics`)
+and what the diagnosis may fit when it tries the effect (``fit_parameters``).
+
+=====================  ==========  ============================================================
+id                     kind        physics
+=====================  ==========  ============================================================
+angular_profile        geometric   lamps emit I0·f(θ) (declared profile, or Gaussian σ)
+interreflection        global      radiosity between floor, walls, ceiling (spectral ρ)
+diffuser               geometric   plate: spectral transmittance, Fresnel angular loss,
+                                   Lambertian re-emission of a diffuse fraction
+aperture_occlusion     geometric   occluders (aperture plates, panels) block lamp→point paths
+tube_end_falloff       geometric   tube emission falls linearly toward the ends
+spectral_filter        spectral    a filter's transmittance multiplies a lamp's spectrum
+detector_cosine_error  instrument  the meter reads cos^k or f2-type response instead of cos
+reflector              geometric   a mirror behind the lamp adds a mirror image; blocks behind
+=====================  ==========  ============================================================
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
+import numpy as np
 from pydantic import Field
 
 from lbscene.schemas.base import Identifier
 
-from .registry import Effect, EffectParams, register_effect
+from .physics import (EmitterSet, LambertianSource, PathChannel, PhysicalEffect,
+                      fresnel_slab_transmittance)
+from .registry import EffectParams, register_effect
 
 __all__ = [
     "AngularProfileEffect",
@@ -24,6 +42,7 @@ __all__ = [
     "SpectralFilterEffect",
     "DetectorCosineErrorEffect",
     "ReflectorEffect",
+    "f2_linear_coefficient",
 ]
 
 
@@ -31,82 +50,369 @@ class _LampSelection(EffectParams):
     lamps: list[Identifier] | None = Field(None, description="Lamps it applies to (default: all on).")
 
 
+def _selected(p, lamp_id: str) -> bool:
+    return p.lamps is None or lamp_id in p.lamps
+
+
+def _lamps_on(ir, lighting):
+    return [ir.lamp(i) for i in ir.lighting[lighting].lamps]
+
+
+# --------------------------------------------------------------------------- angular profile
+
 @register_effect
-class AngularProfileEffect(Effect):
+class AngularProfileEffect(PhysicalEffect):
     id = "angular_profile"
     summary = "Lamps emit with their declared angular profile instead of isotropically."
     kind = "geometric"
+    order = 10
+    fit_parameters = {"sigma_deg": (5.0, 1000.0)}
+    fit_initial = {"sigma_deg": 60.0}
 
     class Params(_LampSelection):
         sigma_deg: float | None = Field(
             None, gt=0, le=1000,
             description="Gaussian σ for lamps without a declared profile (seed: I0·exp(−(θ/2σ)²)).")
 
+    @classmethod
+    def fit_parameters_for(cls, ir, lighting) -> dict:
+        # σ of the effect only matters for lamps that declare no profile of their own
+        if any(lp.profile.get("type") == "isotropic" for lp in _lamps_on(ir, lighting)):
+            return dict(cls.fit_parameters)
+        return {}
+
+    @staticmethod
+    def modify_emitters(ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        from lbscene.engine.profiles import GaussianShape, profile_shape
+
+        if not _selected(p, lamp.id):
+            return es
+        sigma = ctx.lamp_overrides.get(lamp.id, {}).get("sigma_deg")
+        if sigma is not None:
+            return es.with_(shape=GaussianShape(float(sigma)))
+        if lamp.profile.get("type") != "isotropic":
+            key = ("profile", lamp.id)
+            shape = ctx.cache.get(key)
+            if shape is None:
+                shape = ctx.cache[key] = profile_shape(lamp.profile)
+            return es.with_(shape=shape)
+        if p.sigma_deg is not None:
+            return es.with_(shape=GaussianShape(float(p.sigma_deg)))
+        return es
+
+
+# --------------------------------------------------------------------------- inter-reflection
 
 @register_effect
-class InterreflectionEffect(Effect):
+class InterreflectionEffect(PhysicalEffect):
     id = "interreflection"
     summary = "Light reflected between floor, walls and ceiling (radiosity with spectral reflectances)."
     kind = "global"
+    order = 900
+    fit_parameters = {"reflectance_scale": (0.05, 2.5)}
+    fit_initial = {"reflectance_scale": 1.0}
 
     class Params(EffectParams):
-        patch_size_mm: float = Field(50.0, gt=1, le=1000, description="Radiosity patch size.")
+        patch_size_mm: float = Field(100.0, gt=1, le=1000,
+                                     description="Radiosity patch size (smaller: finer, slower).")
         max_bounces: int = Field(0, ge=0, le=100, description="0: solve to convergence.")
-        reflectance_scale: float = Field(1.0, gt=0, le=3, description="Multiplier on all surface reflectances.")
+        reflectance_scale: float = Field(1.0, gt=0, le=3,
+                                         description="Multiplier on all surface reflectances "
+                                                     "(clipped at 0.99).")
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        return None if ir.surfaces else "the booth has no interior surfaces"
+
+    #: the diagnosis refits every candidate: it solves radiosity on patches at least this coarse
+    diagnosis_patch_mm: float = 100.0
+
+    @classmethod
+    def diagnosis_params(cls, params: dict) -> dict:
+        """Parameters used for the diagnosis' many refits (coarser patches: ~0.2 % of the
+        illuminance on the test booths, far below meter noise; 16× fewer unknowns than 50 mm)."""
+        out = dict(params or {})
+        out["patch_size_mm"] = max(float(out.get("patch_size_mm", 100.0)), cls.diagnosis_patch_mm)
+        return out
+
+    @classmethod
+    def refit_cost_s(cls, ir, params: dict) -> float:
+        """Rough seconds per forward evaluation when ``reflectance_scale`` changes (LU per band)."""
+        ps = float((params or {}).get("patch_size_mm", 100.0))
+        area = sum(s.area_mm2() for s in ir.surfaces if s.role != "mesh")
+        n = area / ps ** 2
+        return 16 * 0.8 * (n / 1000.0) ** 3
+
+    @staticmethod
+    def global_transport(ctx, p, model):
+        from lbscene.engine.radiosity import radiosity_transport
+
+        return radiosity_transport(ctx, p, model)
+
+
+# --------------------------------------------------------------------------- diffuser
+
+def _diffuser_fraction(ir, p) -> float:
+    if p.diffuse_fraction is not None:
+        return float(p.diffuse_fraction)
+    sc = ir.diffuser.scattering
+    if sc.get("type") == "lambertian":
+        return float(sc["diffuse_fraction"])
+    # rough glass (GGX roughness, seed 0.04) spreads light by a fraction of a degree: treated as
+    # regular transmission (no diffuse part) unless the booth overrides the fraction
+    return 0.0
+
+
+def _diffuser_rect(ir):
+    from lbscene.engine.forward_geometry import Rectangle
+
+    d = ir.diffuser
+    return Rectangle(np.array([d.centre_mm[0], d.centre_mm[1], d.z_mm]), np.array([0.0, 0.0, 1.0]),
+                     np.array([1.0, 0.0, 0.0]), (d.size_mm[0] / 2, d.size_mm[1] / 2))
 
 
 @register_effect
-class DiffuserEffect(Effect):
+class DiffuserEffect(PhysicalEffect):
     id = "diffuser"
     summary = "A plate below the lamps transmits and scatters their light."
     kind = "geometric"
+    order = 50
+    fit_parameters = {"diffuse_fraction": (0.0, 1.0)}
+    fit_initial = {"diffuse_fraction": 0.5}
 
     class Params(EffectParams):
-        transmittance_scale: float = Field(1.0, gt=0, le=1.5)
+        transmittance_scale: float = Field(1.0, gt=0, le=1.5,
+                                           description="Multiplier on the plate's transmittance.")
         diffuse_fraction: float | None = Field(
             None, ge=0, le=1, description="Override of the booth diffuser's diffuse fraction.")
+        cell_size_mm: float = Field(50.0, gt=1, le=1000,
+                                    description="Cell size of the re-emitting plate (diffuse part).")
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        return None if ir.diffuser is not None else "the booth has no diffuser: section"
+
+    @staticmethod
+    def _spectrum(ctx, p):
+        key = ("diffuser_T", p.transmittance_scale)
+        t = ctx.cache.get(key)
+        if t is None:
+            t = ctx.cache[key] = np.clip(ctx.ir.diffuser.transmittance.array_1nm * p.transmittance_scale,
+                                         0.0, 1.0)
+        return t
+
+    @classmethod
+    def path_factors(cls, ctx, p, es, rx):
+        from lbscene.engine.forward_geometry import segment_fraction_hitting
+
+        ir = ctx.ir
+        if ir.diffuser is None:
+            return None
+        hit = segment_fraction_hitting(es.points_mm, es.half_step, rx, _diffuser_rect(ir))
+        if not hit.any():
+            return None
+        d = rx[:, None, :] - es.points_mm[None, :, :]
+        cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+        t0 = fresnel_slab_transmittance(np.ones(1), ir.diffuser.ior)[0]
+        ang = fresnel_slab_transmittance(cos_i, ir.diffuser.ior) / t0
+        fd = _diffuser_fraction(ir, p)
+        through = hit * (1.0 - fd) * ang
+        return [PathChannel(through, "diffuser", cls._spectrum(ctx, p)),
+                PathChannel(1.0 - hit, None, None)]
+
+    @classmethod
+    def secondary_sources(cls, ctx, p, direct):
+        from lbscene.engine.forward_geometry import quad_subpoints
+
+        ir = ctx.ir
+        fd = _diffuser_fraction(ir, p)
+        if ir.diffuser is None or fd <= 0:
+            return []
+        d = ir.diffuser
+        (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
+        nu = max(1, int(np.ceil(sx / p.cell_size_mm)))
+        nv = max(1, int(np.ceil(sy / p.cell_size_mm)))
+        xs = cx - sx / 2 + sx * np.arange(nu + 1) / nu
+        ys = cy - sy / 2 + sy * np.arange(nv + 1) / nv
+        X0, Y0 = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
+        X1, Y1 = np.meshgrid(xs[1:], ys[1:], indexing="ij")
+        z = d.z_mm
+        # facing down (emitting toward the booth): counter-clockwise seen from below
+        polys = np.stack([np.stack([X0, Y0, np.full_like(X0, z)], -1),
+                          np.stack([X0, Y1, np.full_like(X0, z)], -1),
+                          np.stack([X1, Y1, np.full_like(X0, z)], -1),
+                          np.stack([X1, Y0, np.full_like(X0, z)], -1)], axis=2).reshape(-1, 4, 3)
+        pts, w = quad_subpoints(polys, 2)
+        top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
+        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
+        # light arriving on the top side: cos-weighted and reduced by the Fresnel angular factor
+        terms = direct(top, up, exclude=(cls.id,), incidence_weight=lambda cos_i: (
+            fresnel_slab_transmittance(cos_i, d.ior)
+            / fresnel_slab_transmittance(np.ones(1), d.ior)[0]))
+        T = cls._spectrum(ctx, p)
+        exit_, descr = [], []
+        for t in terms:
+            e = (t.geo.reshape(polys.shape[0], -1) * w).sum(axis=1)
+            exit_.append(fd * e)
+            descr.append(t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser"))
+        if not exit_:
+            return []
+        return [LambertianSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)),
+                                 np.stack(exit_, axis=1), descr)]
+
+
+# --------------------------------------------------------------------------- occluders
+
+def _occluder_rects(ir, p):
+    from lbscene.engine.forward_geometry import Rectangle
+
+    out = []
+    for o in ir.occluders:
+        if p.occluders is not None and o.id not in p.occluders:
+            continue
+        n = np.asarray(o.normal, float)
+        u = np.asarray(o.u_axis, float)
+        u = u - n * (u @ n)
+        u = u / np.linalg.norm(u)
+        half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
+        hole = None
+        if o.type == "aperture_plate" and o.opening_mm is not None:
+            hole = (min(o.opening_mm[0] * p.opening_scale / 2, half[0]),
+                    min(o.opening_mm[1] * p.opening_scale / 2, half[1]))
+        out.append((o, Rectangle(np.asarray(o.centre_mm, float), n, u, half, hole)))
+    return out
 
 
 @register_effect
-class ApertureOcclusionEffect(Effect):
+class ApertureOcclusionEffect(PhysicalEffect):
     id = "aperture_occlusion"
     summary = "The luminaire cavity, an aperture or another occluder blocks part of the lamp light."
     kind = "geometric"
+    order = 40
+    fit_parameters = {"opening_scale": (0.3, 3.0)}
+    fit_initial = {"opening_scale": 1.0}
 
     class Params(EffectParams):
         occluders: list[Identifier] | None = Field(None, description="Occluders used (default: all).")
         opening_scale: float = Field(1.0, gt=0, le=5, description="Multiplier on aperture openings.")
 
+    @classmethod
+    def applicable(cls, ir, lighting):
+        on = set(ir.lighting[lighting].lamps)
+        if not any(o.lamps is None or on & set(o.lamps) for o in ir.occluders):
+            return "the booth has no occluders: (apertures, cavity panels) for the lamps on"
+        return None
+
+    @staticmethod
+    def path_factors(ctx, p, es, rx):
+        from lbscene.engine.forward_geometry import segment_fraction_hitting
+
+        key = ("occ", p.opening_scale, tuple(p.occluders or ()))
+        rects = ctx.cache.get(key)
+        if rects is None:
+            rects = ctx.cache[key] = _occluder_rects(ctx.ir, p)
+        blocked = None
+        for o, rect in rects:
+            if o.lamps is not None and es.lamp_id not in o.lamps:
+                continue
+            b = segment_fraction_hitting(es.points_mm, es.half_step, rx, rect)
+            # several occluders on one path: the blocked fractions combine as independent
+            blocked = b if blocked is None else 1.0 - (1.0 - blocked) * (1.0 - b)
+        if blocked is None or not blocked.any():
+            return None
+        return [PathChannel(1.0 - blocked)]
+
+
+# --------------------------------------------------------------------------- tube ends
 
 @register_effect
-class TubeEndFalloffEffect(Effect):
+class TubeEndFalloffEffect(PhysicalEffect):
     id = "tube_end_falloff"
     summary = "Emission of tubes falls toward their ends (cathodes, phosphor ageing)."
     kind = "geometric"
+    order = 20
+    fit_parameters = {"end_level": (0.0, 1.0), "falloff_length_mm": (5.0, 1000.0)}
+    fit_initial = {"end_level": 0.5, "falloff_length_mm": 100.0}
 
     class Params(_LampSelection):
         falloff_length_mm: float = Field(100.0, gt=0, le=2000,
                                          description="Length over which emission falls at each end.")
         end_level: float = Field(0.5, ge=0, le=1, description="Relative emission at the very end.")
 
+    @classmethod
+    def applicable(cls, ir, lighting):
+        if not any(lp.kind == "tube" for lp in _lamps_on(ir, lighting)):
+            return "no tube lamp is on"
+        return None
+
+    @staticmethod
+    def weight(distance_from_end_mm, p) -> np.ndarray:
+        """Relative emission at a distance from the nearer tube end (linear ramp)."""
+        t = np.clip(np.asarray(distance_from_end_mm, float) / p.falloff_length_mm, 0.0, 1.0)
+        return p.end_level + (1.0 - p.end_level) * t
+
+    @classmethod
+    def modify_emitters(cls, ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        if lamp.kind != "tube" or not _selected(p, lamp.id):
+            return es
+        d_end = (0.5 - np.abs(es.s)) * lamp.length_mm
+        return es.with_(weights=es.weights * cls.weight(d_end, p))
+
+
+# --------------------------------------------------------------------------- spectral filter
 
 @register_effect
-class SpectralFilterEffect(Effect):
+class SpectralFilterEffect(PhysicalEffect):
     id = "spectral_filter"
     summary = "A spectral filter in front of a lamp changes its spectrum."
     kind = "spectral"
+    order = 30
 
     class Params(EffectParams):
         filter: Identifier | None = Field(None, description="Filter id applied to `lamps` "
                                           "(default: each lamp's own `filter:`).")
         lamps: list[Identifier] | None = None
 
+    @classmethod
+    def applicable(cls, ir, lighting):
+        if not ir.filters:
+            return "the booth has no filters: section"
+        if not any(lp.filter for lp in _lamps_on(ir, lighting)):
+            return "no lamp that is on names a filter (give `filter:` and `lamps:` to the effect)"
+        return None
+
+    @staticmethod
+    def modify_emitters(ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        if p.filter is not None:
+            fid = p.filter if (p.lamps is None or lamp.id in p.lamps) else None
+        else:
+            fid = lamp.filter if (p.lamps is None or lamp.id in p.lamps) else None
+        if not fid or fid not in ctx.ir.filters:
+            return es
+        t = ctx.ir.filters[fid].transmittance.array_1nm
+        return es.with_(spectrum_1nm=es.spectrum_1nm * t, spectral_key=es.spectral_key + (f"filter:{fid}",))
+
+
+# --------------------------------------------------------------------------- meter cosine error
+
+def f2_linear_coefficient(f2_percent: float) -> float:
+    """Coefficient c of the response cos ε·(1 − c·ε/(π/2)) whose CIE f2 error is ``f2_percent``.
+
+    CIE 69 / ISO/CIE 19476: f2 = ∫₀^{85°} |Y(ε)/(Y(0)·cos ε) − 1| sin 2ε dε.
+    """
+    eps = np.linspace(0.0, np.radians(85.0), 2001)
+    unit = np.trapz((eps / (np.pi / 2)) * np.sin(2 * eps), eps)
+    return float(f2_percent / 100.0 / unit)
+
 
 @register_effect
-class DetectorCosineErrorEffect(Effect):
+class DetectorCosineErrorEffect(PhysicalEffect):
     id = "detector_cosine_error"
     summary = "The illuminance meter's imperfect cosine response (f2 error)."
     kind = "instrument"
+    order = 200
+    fit_parameters = {"exponent": (0.5, 2.0)}
+    fit_initial = {"exponent": 1.05}
 
     class Params(EffectParams):
         model: Literal["power", "f2_linear"] = "power"
@@ -114,12 +420,90 @@ class DetectorCosineErrorEffect(Effect):
                                 description="Response ∝ cos(θ)^exponent (power model).")
         f2_percent: float = Field(3.0, ge=0, le=50, description="CIE f2 error (f2_linear model).")
 
+    @classmethod
+    def fit_parameters_for(cls, ir, lighting) -> dict:
+        return dict(cls.fit_parameters)
+
+    @staticmethod
+    def receiver_response(ctx, p, cos_i: np.ndarray) -> np.ndarray:
+        """Meter reading relative to an ideal cosine receiver, per incidence cosine."""
+        c = np.clip(cos_i, 0.0, 1.0)
+        if p.model == "power":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(c > 0, c ** (p.exponent - 1.0), 0.0)
+        k = f2_linear_coefficient(p.f2_percent)
+        eps = np.arccos(c)
+        return np.clip(1.0 - k * eps / (np.pi / 2), 0.0, None)
+
+
+# --------------------------------------------------------------------------- reflector
+
+def _mirror_rect(ir, lamp, refl):
+    from lbscene.engine.forward_geometry import Rectangle
+
+    n = np.asarray(refl.normal, float)
+    c = np.asarray(lamp.position_mm, float) - n * refl.distance_mm
+    ax = np.asarray(lamp.axis, float)
+    ax = ax - n * (ax @ n)
+    if np.linalg.norm(ax) < 1e-9:                   # lamp axis along the mirror normal
+        ax = np.cross(n, [1.0, 0.0, 0.0])
+        if np.linalg.norm(ax) < 1e-9:
+            ax = np.cross(n, [0.0, 1.0, 0.0])
+    ax = ax / np.linalg.norm(ax)
+    along = (lamp.length_mm if lamp.kind in ("tube", "panel") else refl.width_mm) / 2
+    return Rectangle(c, n, ax, (along, refl.width_mm / 2))
+
 
 @register_effect
-class ReflectorEffect(Effect):
+class ReflectorEffect(PhysicalEffect):
     id = "reflector"
     summary = "Mirrors behind lamps send back-emitted light forward."
     kind = "geometric"
+    order = 60
+    fit_parameters = {"reflectance_scale": (0.05, 1.5)}
+    fit_initial = {"reflectance_scale": 1.0}
 
     class Params(_LampSelection):
         reflectance_scale: float = Field(1.0, gt=0, le=1.5)
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        if not any(lp.reflector for lp in _lamps_on(ir, lighting)):
+            return "no lamp that is on has a reflector:"
+        return None
+
+    @staticmethod
+    def extra_emitters(ctx, p, lamp, es: EmitterSet) -> list[EmitterSet]:
+        if not lamp.reflector or not _selected(p, lamp.id) or lamp.reflector not in ctx.ir.reflectors:
+            return []
+        refl = ctx.ir.reflectors[lamp.reflector]
+        rect = _mirror_rect(ctx.ir, lamp, refl)
+        n = rect.normal
+        pts = es.points_mm - 2.0 * ((es.points_mm - rect.centre) @ n)[:, None] * n[None, :]
+        R = np.clip(refl.reflectance.array_1nm * p.reflectance_scale, 0.0, 1.0)
+
+        def reflect(u, n=n):
+            return u - 2.0 * (u @ n)[..., None] * n
+
+        half = None if es.half_step is None else es.half_step - 2.0 * (es.half_step @ n) * n
+        return [es.with_(points_mm=pts, spectrum_1nm=es.spectrum_1nm * R, half_step=half,
+                         spectral_key=es.spectral_key + (f"reflector:{lamp.reflector}",),
+                         direction_map=reflect, tag=f"image:{lamp.reflector}",
+                         meta={**es.meta, "mirror": rect})]
+
+    @staticmethod
+    def path_factors(ctx, p, es, rx):
+        from lbscene.engine.forward_geometry import segment_fraction_hitting
+
+        lamp = ctx.ir.lamp(es.lamp_id)
+        if not lamp.reflector or not _selected(p, lamp.id) or lamp.reflector not in ctx.ir.reflectors:
+            return None
+        if es.tag.startswith("image:"):
+            # the image shines only through the mirror's extent
+            rect = es.meta["mirror"]
+            return [PathChannel(segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))]
+        rect = _mirror_rect(ctx.ir, lamp, ctx.ir.reflectors[lamp.reflector])
+        blocked = segment_fraction_hitting(es.points_mm, es.half_step, rx, rect)
+        if not blocked.any():
+            return None
+        return [PathChannel(1.0 - blocked)]

@@ -1,0 +1,190 @@
+"""
+The physics interface between the forward model and effect plugins.
+
+The analytic forward model (:mod:`lbscene.engine.forward`) builds each lamp
+as a set of point emitters, traces straight lamp→receiver paths and adds
+global transport.  Effects change that picture through *hooks*: optional
+class methods an effect defines.  An effect implements only the hooks it
+needs; the forward model calls the hooks of the effects a booth enables, in
+``order``.  A third-party effect subclasses :class:`PhysicalEffect` (or just
+:class:`~lbscene.engine.effects.registry.Effect` and defines the methods).
+
+Hooks (``ctx`` is a :class:`ForwardContext`, ``p`` the validated ``Params``):
+
+``modify_emitters(ctx, p, lamp, es) -> EmitterSet``
+    Change a lamp's emitters: angular shape, per-point weights (tube ends),
+    spectrum (filters).
+``extra_emitters(ctx, p, lamp, es) -> list[EmitterSet]``
+    Additional emitters derived from a lamp (mirror images behind it).
+``path_factors(ctx, p, es, rx_points) -> list[PathChannel] | None``
+    Per (receiver, emitter point) transmission of the straight path:
+    occluders (0/1), mirrors, a diffuser plate (angle-dependent, with a
+    spectral transmittance).  Several channels split the light into parts
+    with different spectral multipliers.
+``secondary_sources(ctx, p, direct) -> list[LambertianSource]``
+    Surfaces that re-emit lamp light diffusely (a scattering diffuser);
+    ``direct(points, normals, exclude)`` evaluates direct lamp light.
+``receiver_response(ctx, p, cos_incidence) -> factor``
+    Meter response relative to an ideal cosine receiver (only applied to
+    illuminance-meter receivers, never to physical surfaces).
+``global_transport(ctx, p, model) -> GlobalTransport``
+    Light exchanged between the booth's surfaces (inter-reflection).
+
+Diagnosis metadata (class attributes):
+
+``fit_parameters``
+    ``{param: (low, high)}`` freed when the diagnosis tries the effect.
+``applicable(ir, lighting) -> str | None``
+    ``None`` when the booth has what the effect needs, else the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from .registry import Effect
+
+__all__ = [
+    "PhysicalEffect",
+    "EmitterSet",
+    "PathChannel",
+    "LambertianSource",
+    "ForwardContext",
+    "effect_params",
+]
+
+
+@dataclass(frozen=True)
+class EmitterSet:
+    """Point emitters standing for one lamp (or an image of it).
+
+    The spectral radiant intensity of point ``i`` toward a direction at
+    angle θ from ``aim`` is ``weights[i] · shape(θ) · spectrum_1nm``
+    (W·sr⁻¹·nm⁻¹); ``weights`` sum to 1 for an unmodified lamp.
+    """
+
+    lamp_id: str
+    group: str
+    kind: str                                   # lamp kind: tube, bulb, panel, point
+    points_mm: np.ndarray                       # (N, 3)
+    weights: np.ndarray                         # (N,)
+    s: np.ndarray                               # (N,) position along the lamp, -0.5..0.5
+    aim: np.ndarray                             # (3,)
+    spectrum_1nm: np.ndarray                    # (471,) W·sr⁻¹·nm⁻¹ at θ = 0, whole lamp
+    spectral_key: tuple = ()                    # names of spectral factors applied (term identity)
+    shape: Callable | None = None               # f(θ[, φ]) ; None: isotropic
+    #: maps the direction *from this emitter* to the direction the real lamp emitted
+    #: (mirror images reflect it); None: identity
+    direction_map: Callable | None = None
+    tag: str = "lamp"                           # 'lamp' or e.g. 'image:<reflector id>'
+    #: half of the piece of lamp each point stands for (tubes), mm vector; None for points
+    half_step: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    def with_(self, **kw) -> "EmitterSet":
+        return replace(self, **kw)
+
+
+@dataclass(frozen=True)
+class PathChannel:
+    """Part of the light on the straight paths: ``factor`` (M, N) and a spectral multiplier."""
+
+    factor: np.ndarray | float
+    spectral_key: str | None = None             # None: spectrally neutral
+    spectrum_1nm: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LambertianSource:
+    """Polygons that re-emit diffusely; exitance per term is ``exitance`` (P, K)."""
+
+    polys: np.ndarray                           # (P, 4, 3)
+    normals: np.ndarray                         # (P, 3) emitting side
+    exitance: np.ndarray                        # (P, K) W/m² per unit term spectrum
+    terms: list                                 # K term descriptors (group, spectrum_1nm, key)
+
+
+@dataclass
+class ForwardContext:
+    """What hooks see: the IR, the lighting, enabled effects and fit overrides."""
+
+    ir: Any
+    lighting: str
+    effects: dict[str, dict]                    # effect id → params (validated JSON)
+    lamp_overrides: dict[str, dict] = field(default_factory=dict)   # lamp id → {'sigma_deg': …}
+    options: Any = None
+    cache: dict = field(default_factory=dict)
+
+    def params(self, effect_id: str):
+        from .registry import get_effect
+
+        return effect_params(get_effect(effect_id), self.effects.get(effect_id, {}))
+
+
+def effect_params(cls, params: dict | None):
+    """Validated ``Params`` instance of an effect class (cached by value)."""
+    key = (cls, repr(sorted((params or {}).items())))
+    hit = _PARAMS_CACHE.get(key)
+    if hit is None:
+        hit = cls.Params.model_validate(params or {})
+        if len(_PARAMS_CACHE) > 4096:
+            _PARAMS_CACHE.clear()
+        _PARAMS_CACHE[key] = hit
+    return hit
+
+
+_PARAMS_CACHE: dict = {}
+
+
+class PhysicalEffect(Effect):
+    """Base class of effects with forward-model physics (see the module docstring)."""
+
+    #: evaluation order among enabled effects (lower first)
+    order: ClassVar[int] = 100
+    #: parameters the diagnosis frees when it tries this effect: {param: (low, high)}
+    fit_parameters: ClassVar[dict[str, tuple[float, float]]] = {}
+    #: initial values for the diagnosis (default: the Params default)
+    fit_initial: ClassVar[dict[str, float]] = {}
+
+    @classmethod
+    def applicable(cls, ir, lighting: str) -> str | None:
+        """``None`` when the booth has what this effect needs, else why not."""
+        return None
+
+    @classmethod
+    def fit_parameters_for(cls, ir, lighting: str) -> dict[str, tuple[float, float]]:
+        """Parameters the diagnosis frees for this booth (default: :attr:`fit_parameters`)."""
+        return dict(cls.fit_parameters)
+
+    @classmethod
+    def describe_params(cls) -> list[dict]:
+        """Parameter table for ``lbscene effects``."""
+        out = []
+        for name, f in cls.Params.model_fields.items():
+            out.append({"name": name, "default": f.default if f.default is not None else None,
+                        "description": f.description or "",
+                        "fit_bounds": list(cls.fit_parameters[name]) if name in cls.fit_parameters
+                        else None})
+        return out
+
+
+def lamps_on_ids(ir, lighting: str) -> list[str]:
+    return list(ir.lighting[lighting].lamps)
+
+
+def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
+    """Unpolarised transmittance of a non-absorbing plate (two interfaces, multiple reflections)."""
+    cos_i = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
+    sin_t = np.sqrt(np.clip(1.0 - cos_i ** 2, 0.0, None)) / ior
+    cos_t = np.sqrt(np.clip(1.0 - sin_t ** 2, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = ((cos_i - ior * cos_t) / (cos_i + ior * cos_t)) ** 2
+        rp = ((ior * cos_i - cos_t) / (ior * cos_i + cos_t)) ** 2
+    rs = np.where(cos_i > 0, rs, 1.0)
+    rp = np.where(cos_i > 0, rp, 1.0)
+    ts = (1 - rs) / (1 + rs)      # slab with incoherent multiple reflections
+    tp = (1 - rp) / (1 + rp)
+    return 0.5 * (ts + tp)

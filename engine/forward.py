@@ -1,0 +1,551 @@
+"""
+The analytic forward model: spectral irradiance, illuminance and white-tile
+radiance anywhere in a booth, straight from the :class:`~lbscene.engine.ir.SceneIR`.
+
+Base model (the seed's): each lamp is ``N`` point sources along its length
+(``IRLamp.point_sources``, seed N = 100), each carrying ``1/N`` of the lamp's
+peak spectral intensity ``I0(λ)``; a receiver at distance ``d`` whose normal
+makes an angle θ_r with the direction to a point gets
+
+    E(λ) = Σ_i I0(λ)/N · f(θ_i) · cos θ_r,i / d_i²      (W·m⁻²·nm⁻¹)
+
+with f ≡ 1 unless the ``angular_profile`` effect is on.  Close to a tube
+(closer than a few point spacings) the sum is refined to a fine midpoint
+quadrature of the line integral, so the finite source is integrated exactly
+where the point approximation would fail.
+
+Everything else is an effect plugin enabled by the booth's ``effects:``
+section (see :mod:`lbscene.engine.effects.physics` for the hooks): nothing
+is hard-wired here.
+
+Spectral bookkeeping: each contribution is a *term* — a geometric transfer
+times a 1 nm spectrum.  Direct terms have a spectrally flat transfer;
+inter-reflected terms have a transfer that depends smoothly on wavelength
+(surface reflectances), solved at the band centres and interpolated, then
+multiplied by the (possibly spiky) 1 nm lamp spectrum.  Illuminance is
+683·Σ E(λ)·V(λ)·1 nm, from the 1 nm spectra; band values are band means.
+
+Examples
+--------
+>>> from lbscene.engine.compile import compile_booth          # doctest: +SKIP
+>>> ir = compile_booth("tests/data/minimal-booth")            # doctest: +SKIP
+>>> fm = ForwardModel(ir, "A")                                # doctest: +SKIP
+>>> fm.illuminance_lx([[0, 0, 0]])    # 1000 cd at 0.7 m: 1000/0.49 lx  # doctest: +SKIP
+array([2040.81...])
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field, replace
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from .effects.physics import EmitterSet, ForwardContext, LambertianSource, effect_params
+
+__all__ = [
+    "ForwardOptions",
+    "ForwardModel",
+    "Prediction",
+    "Term",
+    "as_receivers",
+    "K_M",
+    "spectral_tables",
+    "blas_single_thread",
+]
+
+#: Maximum luminous efficacy of radiation, lm/W.
+K_M = 683.0
+
+
+@dataclass(frozen=True)
+class ForwardOptions:
+    """Numerical options of the forward model (not physics: physics lives in effects)."""
+
+    #: integrate tubes finely where a receiver is within ``near_field_factor`` point spacings
+    near_field: bool = True
+    near_field_factor: float = 4.0
+    max_points: int = 4000
+
+
+@dataclass
+class Term:
+    """One contribution: transfer × spectrum.
+
+    ``geo`` (M,) is a spectrally flat transfer (1/m², multiply by the
+    spectrum in W·sr⁻¹·nm⁻¹); ``geo_bands`` (M, B) a transfer that varies
+    smoothly with wavelength, given at the band centres.
+    """
+
+    group: str
+    lamp_id: str
+    key: tuple
+    spectrum_1nm: np.ndarray
+    geo: np.ndarray | None = None
+    geo_bands: np.ndarray | None = None
+    kind: str = "direct"
+
+    def derived(self, *, spectral_key: str | None = None, spectrum_factor=None,
+                kind: str | None = None) -> "Term":
+        """A term descriptor for light that came from this one (no transfer yet)."""
+        key = self.key + ((spectral_key,) if spectral_key else ())
+        spec = self.spectrum_1nm if spectrum_factor is None else self.spectrum_1nm * spectrum_factor
+        return Term(self.group, self.lamp_id, key, spec, None, None, kind or self.kind)
+
+
+def as_receivers(points, normals=None, meter=None):
+    """Normalise receiver arguments: points (M,3), unit normals (M,3), meter mask (M,)."""
+    P = np.atleast_2d(np.asarray(points, float))
+    if P.shape[1] == 2:
+        P = np.c_[P, np.zeros(len(P))]
+    if normals is None:
+        N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    else:
+        N = np.atleast_2d(np.asarray(normals, float))
+        if N.shape[0] == 1 and len(P) > 1:
+            N = np.repeat(N, len(P), axis=0)
+        N = N / np.linalg.norm(N, axis=1, keepdims=True)
+    if meter is None:
+        m = np.ones(len(P), bool)
+    else:
+        m = np.broadcast_to(np.asarray(meter, bool), (len(P),)).copy()
+    return P, N, m
+
+
+_BLAS = None
+
+
+def blas_single_thread():
+    """Context limiting BLAS to one thread: the model's matrices are small, and threaded BLAS
+    on a loaded 2-core machine spin-waits (a 255² LU took 80 ms threaded, 1 ms single)."""
+    import contextlib
+
+    global _BLAS
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # optional: without it BLAS keeps its default threads
+        return contextlib.nullcontext()
+    if _BLAS is None:
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1)
+
+
+def array_key(*arrays) -> str:
+    """Short content hash of arrays (cache keys)."""
+    h = hashlib.blake2b(digest_size=12)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+_TABLES: dict = {}
+
+
+def spectral_tables(grid):
+    """``(V (471,), band matrix (B, 471), interpolation matrix (471, B))`` for a band grid."""
+    key = (grid.first_centre_nm, grid.width_nm, grid.count)
+    t = _TABLES.get(key)
+    if t is None:
+        from .spectra import photopic_1nm
+        from .spectral import REFERENCE_WAVELENGTHS_NM as WL
+
+        c = grid.centres_nm
+        P = np.zeros((WL.size, c.size))
+        if c.size == 1:
+            P[:, 0] = 1.0
+        else:
+            j = np.clip(np.searchsorted(c, WL) - 1, 0, c.size - 2)
+            t_ = np.clip((WL - c[j]) / (c[j + 1] - c[j]), 0.0, 1.0)
+            P[np.arange(WL.size), j] = 1.0 - t_
+            P[np.arange(WL.size), j + 1] += t_
+        t = _TABLES[key] = (photopic_1nm(), grid.integration_matrix, P)
+    return t
+
+
+# --------------------------------------------------------------------------- prediction
+
+@dataclass
+class Prediction:
+    """Result of :meth:`ForwardModel.predict`: terms at M receivers, by lamp group."""
+
+    groups: list[str]
+    terms: list[Term]
+    n: int
+    grid: object
+
+    def _per_group(self, what: str) -> dict[str, np.ndarray]:
+        V, Bm, P = spectral_tables(self.grid)
+        B = Bm.shape[0]
+        out = {g: (np.zeros(self.n) if what == "lux" else np.zeros((self.n, B))) for g in self.groups}
+        for t in self.terms:
+            S = t.spectrum_1nm
+            if t.geo is not None:
+                if what == "lux":
+                    out[t.group] += t.geo * (K_M * float(S @ V))
+                else:
+                    out[t.group] += np.outer(t.geo, Bm @ S)
+            if t.geo_bands is not None:
+                if what == "lux":
+                    out[t.group] += t.geo_bands @ (K_M * (P.T @ (S * V)))
+                else:
+                    out[t.group] += t.geo_bands @ ((P.T * S[None, :]) @ Bm.T)
+        return out
+
+    def lux_by_group(self) -> dict[str, np.ndarray]:
+        """Illuminance (lx) per lamp group at unit intensity scale."""
+        return self._per_group("lux")
+
+    def bands_by_group(self) -> dict[str, np.ndarray]:
+        """Band-mean spectral irradiance (W·m⁻²·nm⁻¹) per lamp group, (M, B)."""
+        return self._per_group("bands")
+
+    def lux(self, scales: dict[str, float] | None = None) -> np.ndarray:
+        scales = scales or {}
+        return sum((scales.get(g, 1.0) * v for g, v in self.lux_by_group().items()),
+                   np.zeros(self.n))
+
+    def bands(self, scales: dict[str, float] | None = None) -> np.ndarray:
+        scales = scales or {}
+        B = spectral_tables(self.grid)[1].shape[0]
+        return sum((scales.get(g, 1.0) * v for g, v in self.bands_by_group().items()),
+                   np.zeros((self.n, B)))
+
+    def spectral_1nm(self, scales: dict[str, float] | None = None) -> np.ndarray:
+        """Spectral irradiance on the 1 nm reference grid, (M, 471)."""
+        scales = scales or {}
+        _, _, P = spectral_tables(self.grid)
+        out = np.zeros((self.n, P.shape[0]))
+        for t in self.terms:
+            s = scales.get(t.group, 1.0)
+            if t.geo is not None:
+                out += s * np.outer(t.geo, t.spectrum_1nm)
+            if t.geo_bands is not None:
+                out += s * (t.geo_bands @ P.T) * t.spectrum_1nm[None, :]
+        return out
+
+
+# --------------------------------------------------------------------------- the model
+
+class ForwardModel:
+    """Forward model of one booth and lighting configuration.
+
+    Parameters
+    ----------
+    ir
+        The compiled booth.
+    lighting
+        Lighting configuration name (default: the booth's first).
+    effects
+        Enabled effects ``{id: params}`` (default: the booth's ``effects:``).
+    lamp_overrides
+        Per-lamp overrides used by fits, e.g. ``{'tube1': {'sigma_deg': 40}}``.
+    cache
+        A dict shared between models of the same IR (a fit passes one), so
+        geometry (form factors, LU factors) is computed once.
+    """
+
+    def __init__(self, ir, lighting: str | None = None, *, effects: dict | None = None,
+                 lamp_overrides: dict | None = None, options: ForwardOptions | None = None,
+                 cache: dict | None = None):
+        from .effects.registry import get_effect
+
+        self.ir = ir
+        self.lighting = lighting or next(iter(ir.lighting))
+        if self.lighting not in ir.lighting:
+            raise KeyError(f"unknown lighting {self.lighting!r}")
+        self.effects = dict(ir.effects if effects is None else effects)
+        self.options = options or ForwardOptions()
+        self.ctx = ForwardContext(ir, self.lighting, self.effects, dict(lamp_overrides or {}),
+                                  self.options, cache if cache is not None else {})
+        self._enabled = sorted(((get_effect(eid), effect_params(get_effect(eid), p))
+                                for eid, p in self.effects.items()),
+                               key=lambda cp: (getattr(cp[0], "order", 100), cp[0].id))
+        self._sets_cache: dict = {}
+        self._global = None
+
+    # ------------------------------------------------------------------ lamps
+    @property
+    def groups(self) -> list[str]:
+        seen = []
+        for lamp, _ in self.ir.lamps_on(self.lighting):
+            if lamp.group not in seen:
+                seen.append(lamp.group)
+        return seen
+
+    def _hooks(self, name: str, exclude: Iterable[str] = ()):
+        ex = set(exclude)
+        for cls, p in self._enabled:
+            fn = getattr(cls, name, None)
+            if fn is not None and cls.id not in ex:
+                yield cls, p, fn
+
+    def base_emitters(self, lamp, n: int, level: float = 1.0) -> EmitterSet:
+        """The lamp as ``n`` equal point emitters (tubes: along the axis; panels: a grid)."""
+        pos = np.asarray(lamp.position_mm, float)
+        axis = np.asarray(lamp.axis, float)
+        if lamp.kind == "tube" and lamp.length_mm > 0:
+            s = (np.arange(n) + 0.5) / n - 0.5
+            pts = pos + np.outer(s * lamp.length_mm, axis)
+        elif lamp.kind == "panel" and lamp.length_mm > 0:
+            aim = np.asarray(lamp.aim, float)
+            wdir = np.cross(aim, axis)
+            wdir = wdir / (np.linalg.norm(wdir) or 1.0)
+            ratio = lamp.length_mm / max(lamp.width_mm, 1e-9)
+            nu = max(1, int(round(np.sqrt(n * ratio))))
+            nv = max(1, int(round(n / nu)))
+            su = (np.arange(nu) + 0.5) / nu - 0.5
+            sv = (np.arange(nv) + 0.5) / nv - 0.5
+            U, W = np.meshgrid(su, sv, indexing="ij")
+            s = U.ravel()
+            pts = pos + np.outer(U.ravel() * lamp.length_mm, axis) + np.outer(W.ravel() * lamp.width_mm, wdir)
+        else:
+            s = np.zeros(1)
+            pts = pos[None, :]
+        w = np.full(len(pts), 1.0 / len(pts))
+        half = axis * lamp.length_mm / (2 * n) if lamp.kind == "tube" and lamp.length_mm > 0 else None
+        return EmitterSet(lamp.id, lamp.group, lamp.kind, pts, w, s, np.asarray(lamp.aim, float),
+                          lamp.peak_intensity_1nm * level, (), half_step=half)
+
+    def emitter_sets(self, lamp, n: int | None = None, level: float = 1.0) -> list[EmitterSet]:
+        """A lamp's emitters after every enabled effect's ``modify_emitters``/``extra_emitters``."""
+        n = n or lamp.point_sources
+        key = (lamp.id, n, level)
+        hit = self._sets_cache.get(key)
+        if hit is not None:
+            return hit
+        es = self.base_emitters(lamp, n, level)
+        for cls, p, fn in self._hooks("modify_emitters"):
+            es = fn(self.ctx, p, lamp, es)
+        sets = [es]
+        for cls, p, fn in self._hooks("extra_emitters"):
+            sets.extend(fn(self.ctx, p, lamp, es))
+        self._sets_cache[key] = sets
+        return sets
+
+    # ------------------------------------------------------------------ direct light
+    def _response(self, cos_i: np.ndarray, meter: np.ndarray) -> np.ndarray | None:
+        hooks = list(self._hooks("receiver_response"))
+        if not hooks or not meter.any():
+            return None
+        f = np.ones_like(cos_i)
+        for cls, p, fn in hooks:
+            f = f * fn(self.ctx, p, cos_i)
+        return np.where(meter[:, None] if f.ndim == 2 else meter, f, 1.0)
+
+    def _pair_geometry(self, es: EmitterSet, P, N):
+        """cos θ_r / d² (1/m²), cos θ_r and emission angle θ for every (receiver, point) pair.
+
+        Depends on geometry only, so it is cached across parameter changes.
+        """
+        key = ("_pairs", array_key(es.points_mm), array_key(P, N), es.tag, es.lamp_id,
+               es.shape is not None)
+        store = self.ctx.cache.setdefault("_pairs", {})
+        hit = store.get(key)
+        if hit is not None:
+            return hit
+        d = P[:, None, :] - es.points_mm[None, :, :]
+        r2 = np.maximum(np.einsum("mnc,mnc->mn", d, d), 1e-6)
+        inv_r = 1.0 / np.sqrt(r2)
+        cos_rx = np.clip(-np.einsum("mnc,mc->mn", d, N) * inv_r, 0.0, None)
+        g0 = cos_rx / (r2 * 1e-6)
+        theta = None
+        if es.shape is not None:
+            u = d * inv_r[..., None]
+            ue = es.direction_map(u) if es.direction_map is not None else u
+            theta = np.arccos(np.clip(ue @ es.aim, -1.0, 1.0))
+        out = (g0, cos_rx, theta)
+        if len(store) >= 64:
+            store.pop(next(iter(store)))
+        store[key] = out
+        return out
+
+    def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight):
+        g0, cos_rx, theta = self._pair_geometry(es, P, N)
+        base = es.weights[None, :] * g0
+        if es.shape is not None:
+            base = base * es.shape(theta)
+        resp = self._response(cos_rx, meter)
+        if resp is not None:
+            base = base * resp
+        if incidence_weight is not None:
+            base = base * incidence_weight(cos_rx)
+        channels = [(1.0, (), None)]
+        pk = None
+        for cls, p, fn in self._hooks("path_factors", exclude):
+            # path factors depend on geometry only: cache them across parameter changes (a fit
+            # varying σ or intensities never recomputes occlusion, mirrors or the diffuser)
+            if pk is None:
+                pk = (array_key(es.points_mm, es.half_step if es.half_step is not None else 0.0),
+                      array_key(P), es.tag, es.lamp_id)
+            ck = (cls.id, repr(p)) + pk
+            store = self.ctx.cache.setdefault("_paths", {})
+            if ck in store:
+                chs = store[ck]
+            else:
+                chs = fn(self.ctx, p, es, P)
+                if len(store) >= 256:
+                    store.pop(next(iter(store)))
+                store[ck] = chs
+            if not chs:
+                continue
+            new = []
+            for f, key, spec in channels:
+                for ch in chs:
+                    k = key + ((ch.spectral_key,) if ch.spectral_key else ())
+                    s = spec if ch.spectrum_1nm is None else (
+                        ch.spectrum_1nm if spec is None else spec * ch.spectrum_1nm)
+                    new.append((f * ch.factor, k, s))
+            channels = new
+        out = []
+        for f, key, spec in channels:
+            geo = (base * f).sum(axis=1) if isinstance(f, np.ndarray) else base.sum(axis=1) * f
+            S = es.spectrum_1nm if spec is None else es.spectrum_1nm * spec
+            out.append((es.spectral_key + key, S, geo))
+        return out
+
+    def _lamp_terms(self, lamp, level, P, N, meter, exclude, incidence_weight) -> dict:
+        """{key: [spectrum, geo (M,)]} of one lamp at the receivers (near field refined)."""
+        acc: dict = {}
+
+        def add(sets, rows):
+            for es in sets:
+                for key, S, geo in self._set_terms(es, P[rows], N[rows], meter[rows], exclude,
+                                                   incidence_weight):
+                    k = (es.tag,) + key
+                    if k not in acc:
+                        acc[k] = [S, np.zeros(len(P))]
+                    acc[k][1][rows] = geo
+
+        allrows = np.arange(len(P))
+        sets = self.emitter_sets(lamp, None, level)
+        add(sets, allrows)
+        opt = self.options
+        if opt.near_field and lamp.kind in ("tube", "panel") and lamp.length_mm > 0:
+            n = lamp.point_sources
+            spacing = lamp.length_mm / n
+            c = np.asarray(lamp.position_mm, float)
+            ax = np.asarray(lamp.axis, float)
+            rel = P - c
+            t = np.clip(rel @ ax, -lamp.length_mm / 2, lamp.length_mm / 2)
+            dist = np.linalg.norm(rel - np.outer(t, ax), axis=1)
+            if lamp.kind == "panel":
+                dist = np.abs(rel @ np.asarray(lamp.aim, float))
+            near = dist < opt.near_field_factor * spacing
+            if near.any():
+                dmin = max(float(dist[near].min()), 0.05 * spacing, 1e-3)
+                n_fine = int(min(opt.max_points, np.ceil(n * opt.near_field_factor * spacing / dmin)))
+                if n_fine > n:
+                    add(self.emitter_sets(lamp, n_fine, level), np.nonzero(near)[0])
+        return acc
+
+    def direct_terms(self, points, normals=None, meter=None, *, exclude: Sequence[str] = (),
+                     incidence_weight=None) -> list[Term]:
+        """Straight lamp→receiver light (with every enabled path/emitter/response effect)."""
+        P, N, m = as_receivers(points, normals, meter)
+        out = []
+        for lamp, level in self.ir.lamps_on(self.lighting):
+            for key, (S, geo) in self._lamp_terms(lamp, level, P, N, m, exclude,
+                                                  incidence_weight).items():
+                out.append(Term(lamp.group, lamp.id, key, S, geo, None, "direct"))
+        return out
+
+    # ------------------------------------------------------------------ secondary emitters
+    def secondary_sources(self) -> list[LambertianSource]:
+        key = "_secondary"
+        hit = getattr(self, key, None)
+        if hit is not None:
+            return hit
+        out = []
+
+        def direct(points, normals, exclude=(), incidence_weight=None):
+            # light arriving on a physical surface (never read by the meter)
+            return self.direct_terms(points, normals, False, exclude=exclude,
+                                     incidence_weight=incidence_weight)
+
+        for cls, p, fn in self._hooks("secondary_sources"):
+            out.extend(fn(self.ctx, p, direct))
+        setattr(self, key, out)
+        return out
+
+    def lambertian_gather(self, src_polys, src_normals, P, N, meter) -> np.ndarray:
+        """(M, S) form factors from receivers to Lambertian polygons, with meter response."""
+        from .forward_geometry import polygon_form_factor, quad_centroids
+
+        ck = ("ff", array_key(src_polys, P, N))
+        F = self.ctx.cache.get(ck)
+        if F is None:
+            F = polygon_form_factor(P, N, src_polys, src_normals)
+            if len(self.ctx.cache) < 512:
+                self.ctx.cache[ck] = F
+        if list(self._hooks("receiver_response")) and meter.any():
+            c = quad_centroids(src_polys)
+            d = c[None, :, :] - P[:, None, :]
+            cos_i = np.clip(np.einsum("msc,mc->ms", d, N) / np.maximum(np.linalg.norm(d, axis=2), 1e-9),
+                            0.0, 1.0)
+            F = F * self._response(cos_i, meter)
+        return F
+
+    def first_order_terms(self, points, normals=None, meter=None) -> list[Term]:
+        """Direct light plus light from secondary (diffusely re-emitting) sources."""
+        P, N, m = as_receivers(points, normals, meter)
+        terms = self.direct_terms(P, N, m)
+        for src in self.secondary_sources():
+            F = self.lambertian_gather(src.polys, src.normals, P, N, m)
+            geo = F @ src.exitance                               # (M, K)
+            for k, d in enumerate(src.terms):
+                terms.append(replace(d, geo=geo[:, k], geo_bands=None))
+        return terms
+
+    # ------------------------------------------------------------------ global transport
+    def global_transports(self) -> list:
+        if self._global is None:
+            self._global = [fn(self.ctx, p, self) for cls, p, fn in self._hooks("global_transport")]
+        return self._global
+
+    # ------------------------------------------------------------------ public API
+    def predict(self, points, normals=None, meter=None) -> Prediction:
+        """All light at the receivers: first-order and global terms."""
+        P, N, m = as_receivers(points, normals, meter)
+        with blas_single_thread():
+            terms = self.first_order_terms(P, N, m)
+            for gt in self.global_transports():
+                terms.extend(gt.terms(P, N, m))
+        return Prediction(self.groups, _merge_terms(terms), len(P), self.ir.grid)
+
+    def illuminance_lx(self, points, normals=None, meter: bool = True, scales=None) -> np.ndarray:
+        """Illuminance (lx) read by the meter (``meter=True``) or on a physical surface."""
+        return self.predict(points, normals, meter).lux(scales)
+
+    def spectral_irradiance_bands(self, points, normals=None, scales=None) -> np.ndarray:
+        """Band-mean spectral irradiance (W·m⁻²·nm⁻¹) on physical surfaces, (M, B)."""
+        return self.predict(points, normals, False).bands(scales)
+
+    def spectral_irradiance_1nm(self, points, normals=None, scales=None) -> np.ndarray:
+        """Spectral irradiance (W·m⁻²·nm⁻¹) at 1 nm on physical surfaces, (M, 471)."""
+        return self.predict(points, normals, False).spectral_1nm(scales)
+
+    def white_tile_radiance_1nm(self, point=None, normal=(0.0, 0.0, 1.0), reflectance_1nm=1.0,
+                                scales=None) -> np.ndarray:
+        """Radiance (W·sr⁻¹·m⁻²·nm⁻¹) of a Lambertian tile: ρ(λ)·E(λ)/π."""
+        p = self.ir.sample_position_mm if point is None else point
+        e = self.spectral_irradiance_1nm([p], [normal], scales)[0]
+        return np.asarray(reflectance_1nm, float) * e / np.pi
+
+
+def _merge_terms(terms: list[Term]) -> list[Term]:
+    """Sum terms with the same group, lamp, spectral identity and kind of transfer."""
+    out: dict = {}
+    for t in terms:
+        k = (t.group, t.lamp_id, t.key, t.geo is not None, t.geo_bands is not None)
+        if k not in out:
+            out[k] = replace(t, geo=None if t.geo is None else t.geo.copy(),
+                             geo_bands=None if t.geo_bands is None else t.geo_bands.copy())
+        else:
+            if t.geo is not None:
+                out[k].geo += t.geo
+            if t.geo_bands is not None:
+                out[k].geo_bands += t.geo_bands
+    return list(out.values())

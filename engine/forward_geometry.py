@@ -1,0 +1,393 @@
+"""
+Geometry kernels of the analytic forward model (vectorised numpy, millimetres).
+
+* :func:`polygon_form_factor`: exact point-to-polygon form factor of a
+  Lambertian polygon (Lambert's contour formula), clipped to the receiver's
+  upper half-space, so vertical or tilted receivers that see a polygon only
+  partly are handled exactly.
+* :func:`mesh_patches`: the booth's interior surfaces cut into radiosity
+  patches (rectangles of about ``patch_size_mm``; general triangle meshes by
+  midpoint subdivision).
+* :func:`segment_hits_rectangle`: which lamp→receiver segments cross a
+  rectangle (occluders, mirrors, the diffuser plate).
+
+Examples
+--------
+A unit-radiance square of side 2a seen from a point on its axis at height h
+(closed form: F = (2/π)·[a/√(a²+h²)·atan(a/√(a²+h²))]·2 for the square):
+
+>>> import numpy as np
+>>> a, h = 100.0, 100.0
+>>> quad = np.array([[[-a, -a, h], [a, -a, h], [a, a, h], [-a, a, h]]])
+>>> f = polygon_form_factor(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), quad)
+>>> s = a / np.hypot(a, h)
+>>> round(float(f[0, 0]), 6) == round(float(4 / (2 * np.pi) * 2 * s * np.arctan(s)), 6)
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "polygon_form_factor",
+    "Patches",
+    "mesh_patches",
+    "quad_subpoints",
+    "segment_hits_rectangle",
+    "segment_fraction_hitting",
+    "polygon_form_factor_pairs",
+    "Rectangle",
+]
+
+_EPS = 1e-12
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def polygon_form_factor(points: np.ndarray, normals: np.ndarray, polys: np.ndarray,
+                        poly_normals: np.ndarray | None = None, chunk: int = 64) -> np.ndarray:
+    """Form factor from receiver points to Lambertian polygons.
+
+    Irradiance at a receiver from a polygon of uniform exitance ``M`` is
+    ``M · F``.  Exact for an ideal cosine receiver (Lambert's contour
+    integral), with the polygon clipped to the receiver's upper half-space.
+
+    Parameters
+    ----------
+    points, normals
+        ``(M, 3)`` receiver positions (mm) and unit normals.
+    polys
+        ``(P, 4, 3)`` convex planar quads (a triangle repeats its last vertex).
+    poly_normals
+        ``(P, 3)`` emitting side of each polygon; receivers behind it get 0.
+        ``None``: both sides emit.
+
+    Returns
+    -------
+    ``(M, P)`` form factors (dimensionless).
+    """
+    points = np.asarray(points, float)
+    normals = np.asarray(normals, float)
+    polys = np.asarray(polys, float)
+    out = np.empty((points.shape[0], polys.shape[0]))
+    for a in range(0, points.shape[0], chunk):
+        out[a:a + chunk] = _ff_chunk(points[a:a + chunk], normals[a:a + chunk], polys, poly_normals)
+    return out
+
+
+def _lambert_sum(V: np.ndarray, n: np.ndarray, closed_count=None) -> np.ndarray:
+    """|Σ_edges Γ_k·n| / 2π for polygons ``V`` (..., K, 3) relative to the receiver."""
+    B = np.roll(V, -1, axis=-2)
+    C = np.cross(V, B)
+    cn = np.sqrt(np.einsum("...kc,...kc->...k", C, C))
+    dot = np.einsum("...kc,...kc->...k", V, B)
+    ang = np.arctan2(cn, dot)
+    w = np.where(cn > _EPS, ang / np.where(cn > _EPS, cn, 1.0), 0.0)
+    g = np.einsum("...k,...kc->...c", w, C)
+    return np.abs(np.einsum("...c,...c->...", g, n)) / (2.0 * np.pi)
+
+
+def _clip_polys(R: np.ndarray, s: np.ndarray):
+    """Clip quads R (K, 4, 3) to s >= 0; return padded polygons (K, 8, 3) and vertex counts."""
+    slots = np.zeros(R.shape[:1] + (8, 3))
+    valid = np.zeros(R.shape[:1] + (8,), bool)
+    for k in range(4):
+        a, b = R[:, k], R[:, (k + 1) % 4]
+        sa, sb = s[:, k], s[:, (k + 1) % 4]
+        slots[:, 2 * k] = a
+        valid[:, 2 * k] = sa >= 0
+        cross = (sa > 0) & (sb < 0) | (sa < 0) & (sb > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(cross, sa / (sa - sb), 0.0)
+        slots[:, 2 * k + 1] = a + (b - a) * t[:, None]
+        valid[:, 2 * k + 1] = cross
+    # compact the valid vertices to the front, pad with the last valid one (zero-length edges)
+    order = np.argsort(~valid, axis=1, kind="stable")
+    V = np.take_along_axis(slots, order[..., None], axis=1)
+    cnt = valid.sum(axis=1)
+    idx = np.minimum(np.arange(8)[None, :], np.maximum(cnt - 1, 0)[:, None])
+    return np.take_along_axis(V, idx[..., None], axis=1), cnt
+
+
+def _ff_chunk(x, n, polys, pn):
+    R = polys[None, :, :, :] - x[:, None, None, :]             # (m, P, 4, 3)
+    s = np.einsum("mpkc,mc->mpk", R, n)                        # height above receiver plane
+    scale = np.sqrt(np.einsum("mpkc,mpkc->mpk", R, R)).max(axis=2)
+    tol = 1e-9 * np.maximum(scale, 1.0)
+    above = s >= -tol[..., None]
+    full = above.all(axis=2)
+    # a polygon in the receiver's own plane (or below it) sends nothing: cos θ = 0
+    some = s.max(axis=2) > tol
+    f = np.zeros(s.shape[:2])
+    fm = full & some
+    if fm.any():
+        nn = np.broadcast_to(n[:, None, :], R.shape[:2] + (3,))
+        f[fm] = _lambert_sum(R[fm], nn[fm])
+    part = some & ~full
+    if part.any():
+        mi, pi = np.nonzero(part)
+        V, cnt = _clip_polys(R[mi, pi], s[mi, pi])
+        f[mi, pi] = np.where(cnt >= 3, _lambert_sum(V, n[mi]), 0.0)
+    if pn is not None:
+        centre = polys.mean(axis=1)
+        front = np.einsum("mpc,pc->mp", x[:, None, :] - centre[None], pn) > 0
+        f = np.where(front, f, 0.0)
+    return f
+
+
+def polygon_form_factor_pairs(points: np.ndarray, normals: np.ndarray, polys: np.ndarray) -> np.ndarray:
+    """Like :func:`polygon_form_factor` for matched pairs: point ``k`` to polygon ``k`` → ``(K,)``."""
+    R = polys - points[:, None, :]                              # (K, 4, 3)
+    s = np.einsum("kvc,kc->kv", R, normals)
+    scale = np.sqrt(np.einsum("kvc,kvc->kv", R, R)).max(axis=1)
+    tol = 1e-9 * np.maximum(scale, 1.0)
+    full = (s >= -tol[:, None]).all(axis=1)
+    some = s.max(axis=1) > tol
+    f = np.zeros(len(points))
+    fm = full & some
+    if fm.any():
+        f[fm] = _lambert_sum(R[fm], normals[fm])
+    part = some & ~full
+    if part.any():
+        V, cnt = _clip_polys(R[part], s[part])
+        f[part] = np.where(cnt >= 3, _lambert_sum(V, normals[part]), 0.0)
+    return f
+
+
+@dataclass(frozen=True)
+class Patches:
+    """Radiosity patches: convex quads (triangles repeat a vertex)."""
+
+    polys: np.ndarray        # (P, 4, 3) mm
+    normals: np.ndarray      # (P, 3) unit, into the booth
+    areas_mm2: np.ndarray    # (P,)
+    material: np.ndarray     # (P,) material id per patch (object array of str)
+    surface: np.ndarray      # (P,) surface id per patch
+
+    @property
+    def centres(self) -> np.ndarray:
+        return quad_centroids(self.polys)
+
+    def __len__(self) -> int:
+        return self.polys.shape[0]
+
+
+def quad_centroids(polys: np.ndarray) -> np.ndarray:
+    """Area centroid of convex quads (or triangles with a repeated vertex)."""
+    p0, p1, p2, p3 = polys[:, 0], polys[:, 1], polys[:, 2], polys[:, 3]
+    a1 = 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    a2 = 0.5 * np.linalg.norm(np.cross(p2 - p0, p3 - p0), axis=1)
+    c1 = (p0 + p1 + p2) / 3
+    c2 = (p0 + p2 + p3) / 3
+    tot = np.maximum(a1 + a2, _EPS)
+    return (c1 * a1[:, None] + c2 * a2[:, None]) / tot[:, None]
+
+
+def quad_areas(polys: np.ndarray) -> np.ndarray:
+    p0, p1, p2, p3 = polys[:, 0], polys[:, 1], polys[:, 2], polys[:, 3]
+    return 0.5 * (np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+                  + np.linalg.norm(np.cross(p2 - p0, p3 - p0), axis=1))
+
+
+def quad_subpoints(polys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """``k×k`` bilinear sub-cell centres of each quad: points ``(P, k*k, 3)``, weights ``(P, k*k)``.
+
+    Weights are the sub-cell area fractions (they sum to 1 per quad).
+    """
+    t = (np.arange(k) + 0.5) / k
+    u, v = np.meshgrid(t, t, indexing="ij")
+    u, v = u.ravel(), v.ravel()
+    p0, p1, p2, p3 = (polys[:, i][:, None, :] for i in range(4))
+    pts = ((1 - u)[None, :, None] * (1 - v)[None, :, None] * p0 + u[None, :, None] * (1 - v)[None, :, None] * p1
+           + u[None, :, None] * v[None, :, None] * p2 + (1 - u)[None, :, None] * v[None, :, None] * p3)
+    # area weights from the bilinear Jacobian (exact for parallelograms, good for any convex quad)
+    du = (1 - v)[None, :, None] * (p1 - p0) + v[None, :, None] * (p2 - p3)
+    dv = (1 - u)[None, :, None] * (p3 - p0) + u[None, :, None] * (p2 - p1)
+    w = np.linalg.norm(np.cross(du, dv), axis=2)
+    w = w / np.maximum(w.sum(axis=1, keepdims=True), _EPS)
+    return pts, w
+
+
+def _grid_quad(p0, p1, p2, p3, nu, nv):
+    u = np.linspace(0.0, 1.0, nu + 1)
+    v = np.linspace(0.0, 1.0, nv + 1)
+
+    def at(a, b):
+        return ((1 - a) * (1 - b))[..., None] * p0 + (a * (1 - b))[..., None] * p1 \
+            + (a * b)[..., None] * p2 + ((1 - a) * b)[..., None] * p3
+
+    U, V = np.meshgrid(u, v, indexing="ij")
+    P = at(U, V)                                            # (nu+1, nv+1, 3)
+    q = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)
+    return q.reshape(-1, 4, 3)
+
+
+def _split_triangle(tri: np.ndarray, max_edge: float) -> list[np.ndarray]:
+    out, todo = [], [tri]
+    while todo:
+        t = todo.pop()
+        e = max(np.linalg.norm(t[1] - t[0]), np.linalg.norm(t[2] - t[1]), np.linalg.norm(t[0] - t[2]))
+        if e <= max_edge or len(out) + len(todo) > 20000:
+            out.append(t)
+            continue
+        a, b, c = t
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        todo.extend([np.array([a, ab, ca]), np.array([ab, b, bc]), np.array([ca, bc, c]),
+                     np.array([ab, bc, ca])])
+    return out
+
+
+def _as_parallelogram(v: np.ndarray, t: np.ndarray):
+    """Two triangles (0,1,2),(0,2,3) forming a parallelogram → its 4 corners, else None."""
+    if t.shape[0] != 2 or v.shape[0] != 4:
+        return None
+    if sorted(map(tuple, t.tolist())) != sorted([(0, 1, 2), (0, 2, 3)]):
+        return None
+    p0, p1, p2, p3 = v
+    if np.linalg.norm((p1 - p0) - (p2 - p3)) > 1e-6 * max(1.0, np.linalg.norm(p1 - p0)):
+        return None
+    return p0, p1, p2, p3
+
+
+def mesh_patches(ir, patch_size_mm: float, roles=("floor", "ceiling", "left_wall", "right_wall",
+                                                 "rear_wall", "front_wall", "platform")) -> Patches:
+    """Cut the IR's interior surfaces into patches of about ``patch_size_mm``."""
+    polys, mats, surfs = [], [], []
+    for s in ir.surfaces:
+        if s.role not in roles:
+            continue
+        v, t = s.vertex_array, s.triangle_array
+        pg = _as_parallelogram(v, t)
+        if pg is not None:
+            p0, p1, p2, p3 = pg
+            nu = max(1, int(np.ceil(np.linalg.norm(p1 - p0) / patch_size_mm - 1e-9)))
+            nv = max(1, int(np.ceil(np.linalg.norm(p3 - p0) / patch_size_mm - 1e-9)))
+            q = _grid_quad(p0, p1, p2, p3, nu, nv)
+        else:
+            qs = []
+            for tri in t:
+                for sub in _split_triangle(v[tri], patch_size_mm * 1.5):
+                    qs.append(np.array([sub[0], sub[1], sub[2], sub[2]]))
+            q = np.array(qs).reshape(-1, 4, 3)
+        polys.append(q)
+        mats += [s.material] * len(q)
+        surfs += [s.id] * len(q)
+    if not polys:
+        z = np.zeros((0, 4, 3))
+        return Patches(z, np.zeros((0, 3)), np.zeros(0), np.array([], object), np.array([], object))
+    P = np.concatenate(polys)
+    nrm = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    # triangles whose first edge is degenerate: fall back to the other diagonal
+    bad = np.linalg.norm(nrm, axis=1) < _EPS
+    if np.any(bad):
+        nrm[bad] = np.cross(P[bad, 2] - P[bad, 0], P[bad, 3] - P[bad, 0])
+    return Patches(P, _unit(nrm), quad_areas(P), np.array(mats, object), np.array(surfs, object))
+
+
+@dataclass(frozen=True)
+class Rectangle:
+    """A rectangle in space: centre, unit normal, unit u axis, half sizes (mm).
+
+    ``hole_half`` (optional) is a centred rectangular opening: points inside
+    it are *not* on the rectangle (an aperture plate).
+    """
+
+    centre: np.ndarray
+    normal: np.ndarray
+    u: np.ndarray
+    half: tuple[float, float]
+    hole_half: tuple[float, float] | None = None
+
+    @property
+    def v(self) -> np.ndarray:
+        return np.cross(self.normal, self.u)
+
+
+def segment_hits_rectangle(src: np.ndarray, dst: np.ndarray, rect: Rectangle,
+                           t_range: tuple[float, float] = (1e-9, 1 - 1e-9)) -> np.ndarray:
+    """Boolean ``(M, N)``: does the segment from ``src[n]`` to ``dst[m]`` cross ``rect``?
+
+    ``src`` is ``(N, 3)``, ``dst`` is ``(M, 3)``.  Segments lying in the
+    rectangle's plane never hit it.
+    """
+    c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+    u, v = np.asarray(rect.u, float), rect.v
+    hs = (src - c) @ n                                      # (N,)
+    hd = (dst - c) @ n                                      # (M,)
+    denom = hs[None, :] - hd[:, None]                       # (M, N)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(denom) > _EPS, hs[None, :] / denom, -1.0)
+    ok = (t > t_range[0]) & (t < t_range[1])
+    su, sv = (src - c) @ u, (src - c) @ v                   # (N,)
+    du, dv = (dst - c) @ u, (dst - c) @ v                   # (M,)
+    pu = su[None, :] + t * (du[:, None] - su[None, :])
+    pv = sv[None, :] + t * (dv[:, None] - sv[None, :])
+    inside = (np.abs(pu) <= rect.half[0]) & (np.abs(pv) <= rect.half[1])
+    if rect.hole_half is not None:
+        inside &= ~((np.abs(pu) < rect.hole_half[0]) & (np.abs(pv) < rect.hole_half[1]))
+    return ok & inside
+
+
+def _interval_abs_le(a: np.ndarray, d: np.ndarray, H: float):
+    """τ-interval in [0, 1] where |a + τ·d| ≤ H (elementwise), as (lo, hi) with lo > hi if empty."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-H - a) / d
+        t2 = (H - a) / d
+    lo = np.where(np.abs(d) > _EPS, np.minimum(t1, t2), np.where(np.abs(a) <= H, 0.0, 2.0))
+    hi = np.where(np.abs(d) > _EPS, np.maximum(t1, t2), np.where(np.abs(a) <= H, 1.0, -1.0))
+    return np.maximum(lo, 0.0), np.minimum(hi, 1.0)
+
+
+def segment_fraction_hitting(src: np.ndarray, half_step: np.ndarray | None, dst: np.ndarray,
+                             rect: Rectangle) -> np.ndarray:
+    """Fraction ``(M, N)`` of each emitter segment whose light toward ``dst[m]`` crosses ``rect``.
+
+    Emitter ``n`` is the segment ``src[n] ± half_step`` (a piece of a tube);
+    the crossing point of its rays with the rectangle's plane is interpolated
+    linearly between the segment's ends (exact when the tube is parallel to
+    the plane, as lamps and apertures are), so shadow edges are integrated
+    exactly instead of being stepped by the point spacing.  ``half_step``
+    ``None`` (point emitters): 0/1 by :func:`segment_hits_rectangle`.
+    """
+    if half_step is None or not np.any(half_step):
+        return segment_hits_rectangle(src, dst, rect).astype(float)
+    c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+    u, v = np.asarray(rect.u, float), rect.v
+    hdst = (dst - c) @ n
+    du, dv = (dst - c) @ u, (dst - c) @ v
+    ends = []
+    for sgn in (-1.0, 1.0):
+        a = src + sgn * np.asarray(half_step, float)
+        ha = (a - c) @ n
+        den = ha[None, :] - hdst[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(np.abs(den) > _EPS, ha[None, :] / den, -1.0)
+        ok = (t > 1e-9) & (t < 1 - 1e-9)
+        au, av = (a - c) @ u, (a - c) @ v
+        pu = au[None, :] + t * (du[:, None] - au[None, :])
+        pv = av[None, :] + t * (dv[:, None] - av[None, :])
+        ends.append((ok, pu, pv))
+    (ok0, u0, v0), (ok1, u1, v1) = ends
+    lo_u, hi_u = _interval_abs_le(u0, u1 - u0, rect.half[0])
+    lo_v, hi_v = _interval_abs_le(v0, v1 - v0, rect.half[1])
+    lo, hi = np.maximum(lo_u, lo_v), np.minimum(hi_u, hi_v)
+    frac = np.clip(hi - lo, 0.0, 1.0)
+    if rect.hole_half is not None:
+        lo_hu, hi_hu = _interval_abs_le(u0, u1 - u0, rect.hole_half[0])
+        lo_hv, hi_hv = _interval_abs_le(v0, v1 - v0, rect.hole_half[1])
+        hlo = np.maximum(np.maximum(lo_hu, lo_hv), lo)
+        hhi = np.minimum(np.minimum(hi_hu, hi_hv), hi)
+        frac = frac - np.clip(hhi - hlo, 0.0, 1.0)
+    both = ok0 & ok1
+    mixed = ok0 ^ ok1
+    out = np.where(both, frac, 0.0)
+    if mixed.any():  # the segment straddles the plane: fall back to its midpoint
+        mid = segment_hits_rectangle(src, dst, rect).astype(float)
+        out = np.where(mixed, mid, out)
+    return np.clip(out, 0.0, 1.0)

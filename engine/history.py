@@ -1,0 +1,121 @@
+"""
+Watch the error fall: every ``compare`` run appends one entry to a history
+next to the measurements (``<measurement set>.history.jsonl``, one JSON
+object per line) — booth hash, enabled effects, fitted parameters, errors,
+verdict — labelled with what changed since the previous entry.
+
+The file is rewritten atomically (temp file + ``os.replace``), so an
+interrupted run never leaves a half-written history.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+__all__ = ["HistoryEntry", "append_history", "read_history", "change_label", "plot_history"]
+
+MAX_ENTRIES = 10_000
+
+
+def change_label(prev: dict | None, cur: dict) -> str:
+    """Human label of what changed between two history entries."""
+    if prev is None:
+        return "first run"
+    parts = []
+    pe, ce = prev.get("effects", {}), cur.get("effects", {})
+    added = sorted(set(ce) - set(pe))
+    removed = sorted(set(pe) - set(ce))
+    if added:
+        parts.append("+" + ", +".join(added))
+    if removed:
+        parts.append("−" + ", −".join(removed))
+    changed = sorted(k for k in set(ce) & set(pe) if ce[k] != pe[k])
+    if changed:
+        parts.append("changed " + ", ".join(changed))
+    if prev.get("n_points") != cur.get("n_points"):
+        parts.append(f"{prev.get('n_points')}→{cur.get('n_points')} points")
+    if prev.get("fitted") != cur.get("fitted"):
+        parts.append("fit on" if cur.get("fitted") else "fit off")
+    if not parts and prev.get("booth_hash") != cur.get("booth_hash"):
+        parts.append("booth edited")
+    return "; ".join(parts) if parts else "no change"
+
+
+def read_history(path: Path) -> list[dict]:
+    """Entries of a history file (missing file: none; unreadable lines are skipped)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        line = line.strip()
+        if not line:
+            continue
+        try:
+            d = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(d, dict):
+            out.append(d)
+    return out[-MAX_ENTRIES:]
+
+
+def append_history(path: Path, entry: dict) -> dict:
+    """Append ``entry`` (adds ``step``, ``time`` and ``label``); atomic rewrite."""
+    path = Path(path)
+    old = read_history(path)
+    entry = dict(entry)
+    entry.setdefault("time", time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    entry["step"] = (old[-1].get("step", len(old)) + 1) if old else 1
+    entry["label"] = change_label(old[-1] if old else None, entry)
+    lines = [json.dumps(e, sort_keys=True, ensure_ascii=False) for e in old + [entry]]
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=str(path.parent))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write("\n".join(lines) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return entry
+
+
+def plot_history(entries: list[dict], ax=None, title: str = ""):
+    """Error per step (RMSE %, and the noise level), each step labelled with what changed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7.5, 3.6), dpi=110)
+    else:
+        fig = ax.figure
+    steps = [e.get("step", i + 1) for i, e in enumerate(entries)]
+    rmse = [e.get("rmse_percent") for e in entries]
+    noise = [e.get("noise_percent_estimate") for e in entries]
+    ax.plot(steps, rmse, "o-", color="#1f5fa8", label="RMSE %")
+    if any(n is not None for n in noise):
+        ax.plot(steps, [n if n is not None else float("nan") for n in noise], "--", color="0.5",
+                label="noise %")
+    for s, r, e in zip(steps, rmse, entries):
+        if r is None:
+            continue
+        ax.annotate(e.get("label", ""), (s, r), textcoords="offset points", xytext=(4, 6), fontsize=7,
+                    rotation=20)
+    ax.set_xlabel("step")
+    ax.set_ylabel("illuminance RMSE (%)")
+    ax.set_yscale("log")
+    ax.set_xticks(steps)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "error per step", fontsize=10)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,144 @@
+"""``lbscene compare MEASUREMENTS [--booth FILE] [--fit/--no-fit] [--format text|json] [--report OUT.html]``"""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+def diagnosis_progress(console, enabled: bool):
+    """A rich progress bar over the diagnosis' candidate refits (context manager + callback)."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                    TimeElapsedColumn(), console=console, transient=True, disable=not enabled)
+    state = {}
+
+    def cb(k, n, eid):
+        if "task" not in state:
+            state["task"] = prog.add_task("diagnosis", total=n)
+        prog.update(state["task"], completed=k, description=f"diagnosis: refit with {eid}" if eid else
+                    "diagnosis")
+
+    return prog, cb
+
+
+def print_text(res, console) -> None:
+    from rich.table import Table
+
+    j = res.to_json()
+    f = res.fit
+    console.print(f"[bold]{res.meas.name}[/bold]  booth {res.meas.booth_file}  lighting {res.meas.lighting}")
+    console.print(f"effects: {', '.join(sorted(f.effects)) or 'none'}"
+                  + (f"   known output: {', '.join(res.meas.known_output_groups)}"
+                     if res.meas.known_output_groups else ""))
+    n = j["n_points"]
+    if n:
+        console.print(f"illuminance ({n} readings{'' if f.fitted else ', not fitted'}): "
+                      f"RMSE {j['rmse_percent']:.2f} %, mean |r| {j['mean_abs_percent']:.2f} %, "
+                      f"max {j['max_percent']:.2f} %   noise {j['noise_percent_used']:.2g} % "
+                      f"({res.noise.source}; data estimate "
+                      f"{'—' if res.noise.estimate_percent is None else f'{res.noise.estimate_percent:.2g} %'})")
+    if j["spectral"]:
+        console.print(f"white-tile spectrum: RMSE {j['spectral']['rmse_percent']:.2f} % over the bands")
+    if j["parameters"]:
+        t = Table(title="fitted parameters", title_justify="left")
+        for c in ("parameter", "value", "std. error", "bounds"):
+            t.add_column(c, justify="right" if c != "parameter" else "left")
+        for p in j["parameters"]:
+            t.add_row(p["target"], f"{p['value']:.5g}", "—" if p["stderr"] is None else f"{p['stderr']:.2g}",
+                      f"{p['bounds'][0]:g} … {p['bounds'][1]:g}" + (" (at bound)" if p["at_bound"] else ""))
+        console.print(t)
+    for w in f.warnings:
+        console.print(f"[yellow]warning:[/yellow] {w}")
+    if n:
+        worst = sorted(j["residuals"], key=lambda r: -abs(r["residual_percent"]))[:5]
+        t = Table(title="largest residuals", title_justify="left")
+        for c in ("x mm", "y mm", "z mm", "facing", "measured lx", "model lx", "residual %"):
+            t.add_column(c, justify="right")
+        for r in worst:
+            t.add_row(f"{r['x_mm']:g}", f"{r['y_mm']:g}", f"{r['z_mm']:g}", r["orientation"],
+                      f"{r['measured_lx']:.1f}", f"{r['predicted_lx']:.1f}", f"{r['residual_percent']:+.2f}")
+        console.print(t)
+    d = res.diagnosis
+    if d is None:
+        return
+    if d.suspects:
+        t = Table(title="suspects (refit with each effect the booth does not enable)", title_justify="left")
+        for c in ("effect", "RMSE after %", "score ΔBIC", "+params", "to noise", "fitted"):
+            t.add_column(c, justify="left" if c in ("effect", "fitted") else "right")
+        for s in d.suspects:
+            t.add_row(s.effect, f"{s.rmse_percent_after:.2f}", f"{s.score:.1f}", str(s.n_params),
+                      "yes" if s.explains else "no", ", ".join(f"{k}={v:.4g}" for k, v in s.params.items()))
+        console.print(t)
+    if d.skipped:
+        console.print("not tested: " + "; ".join(f"{k} ({v})" for k, v in d.skipped.items()), style="dim")
+    style = "green" if d.verdict == "none" else ("yellow" if d.verdict.startswith("ambiguous") else "red")
+    console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]")
+    for x in d.explanation:
+        console.print(f"  {x}")
+    if d.snippet:
+        console.print("add to the booth file:")
+        console.print(d.snippet, markup=False, highlight=False)
+    if res.plan is not None and res.plan.points:
+        t = Table(title="measure next (where the candidates disagree most)", title_justify="left")
+        for c in ("x mm", "y mm", "z mm", "facing", *[f"{c} lx" for c in res.plan.candidates], "spread %"):
+            t.add_column(c, justify="right")
+        for p in res.plan.points:
+            t.add_row(f"{p.position_mm[0]:g}", f"{p.position_mm[1]:g}", f"{p.position_mm[2]:g}", p.orientation(),
+                      *[f"{p.predicted_lx[c]:.1f}" for c in res.plan.candidates], f"{p.spread_percent:.1f}")
+        console.print(t)
+    if res.history_entry:
+        console.print(f"history: step {res.history_entry['step']} ({res.history_entry['label']}) → "
+                      f"{res.meas.history_path}", style="dim")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("compare")
+    def compare(
+        measurements: Path = typer.Argument(..., help="Measurement-set YAML (kind: measurement_set)."),
+        booth: Optional[Path] = typer.Option(None, "--booth", help="Booth folder/file (overrides the "
+                                             "measurement set's booth:)."),
+        fit: bool = typer.Option(True, "--fit/--no-fit", help="Fit the free parameters (default) or "
+                                 "compare the booth as declared."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+        report: Optional[Path] = typer.Option(None, "--report", help="Write a self-contained HTML report."),
+        diagnose: bool = typer.Option(True, "--diagnose/--no-diagnose",
+                                      help="Refit with each missing effect and give a verdict."),
+        history: bool = typer.Option(True, "--history/--no-history",
+                                     help="Append this run to the history next to the measurements."),
+        allow_path: Optional[List[Path]] = typer.Option(
+            None, "--allow-path", help="Extra folder file references may point into."),
+    ) -> None:
+        """Compare a booth model with measurements: errors, fit, missing effect, plan, history."""
+        from rich.console import Console
+
+        from lbscene.engine.compare import run_compare
+
+        err = Console(stderr=True)
+        prog, cb = diagnosis_progress(err, err.is_terminal)
+        with prog:
+            res = run_compare(measurements, booth=booth, fit=fit, do_diagnose=diagnose, history=history,
+                              allowed_dirs=tuple(allow_path or ()), progress=cb)
+        if report is not None:
+            from lbscene.engine.report import write_report
+
+            write_report(res, report)
+        if format is Format.json:
+            out = res.to_json()
+            if report is not None:
+                out["report"] = str(report)
+            typer.echo(json.dumps(out, indent=2, ensure_ascii=False))
+        else:
+            print_text(res, Console())
+            if report is not None:
+                typer.echo(f"report: {report}")

@@ -1,0 +1,46 @@
+"""``lbscene effects``: the registered physical effects and their parameters."""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("effects")
+    def effects(format: Format = typer.Option(Format.text, "--format", help="text or json.")) -> None:
+        """List the effects a booth's `effects:` section can enable (built-ins and plugins)."""
+        from rich.console import Console
+        from rich.table import Table
+
+        from lbscene.engine.effects.registry import available_effects
+
+        rows = []
+        for eid, cls in available_effects().items():
+            params = []
+            for name, f in cls.Params.model_fields.items():
+                params.append({"name": name, "default": f.default if not callable(f.default) else None,
+                               "description": f.description or "",
+                               "fit_bounds": list(getattr(cls, "fit_parameters", {}).get(name, ()))
+                               or None})
+            rows.append({"id": eid, "kind": getattr(cls, "kind", ""), "summary": cls.summary,
+                         "module": cls.__module__, "parameters": params})
+        if format is Format.json:
+            typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, default=str))
+            return
+        t = Table(title="registered effects (enable under `effects:` in a booth file)", title_justify="left")
+        t.add_column("id")
+        t.add_column("kind")
+        t.add_column("what it models")
+        t.add_column("parameters (default; * = fitted by the diagnosis)")
+        for r in rows:
+            ps = ", ".join(f"{p['name']}={p['default']}{'*' if p['fit_bounds'] else ''}" for p in r["parameters"])
+            t.add_row(r["id"], r["kind"], r["summary"], ps or "—")
+        Console().print(t)

@@ -1,0 +1,69 @@
+"""``lbscene history MEASUREMENTS``: the error per step, labelled with what changed."""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("history")
+    def history(
+        measurements: Path = typer.Argument(..., help="Measurement-set YAML whose history to show."),
+        plot: Optional[Path] = typer.Option(None, "--plot", help="Write the error-per-step plot (PNG)."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+    ) -> None:
+        """Print the compare history of a measurement set (and plot it with --plot)."""
+        from rich.console import Console
+        from rich.table import Table
+
+        from lbscene.engine.diagnostics import LbsceneUserError
+        from lbscene.engine.history import plot_history, read_history
+
+        if not measurements.exists():
+            raise LbsceneUserError.single("LB010", "file not found", str(measurements))
+        hp = measurements.with_name(measurements.stem + ".history.jsonl")
+        entries = read_history(hp)
+        if plot is not None and entries:
+            import tempfile
+
+            import os
+
+            fig = plot_history(entries, title=f"history of {measurements.name}")
+            fd, tmp = tempfile.mkstemp(suffix=".png", dir=str(plot.resolve().parent))
+            os.close(fd)
+            fig.savefig(tmp, format="png", bbox_inches="tight")
+            os.replace(tmp, plot)
+        if format is Format.json:
+            typer.echo(json.dumps({"history": str(hp), "entries": entries,
+                                   "plot": str(plot) if plot and entries else None}, indent=2,
+                                  ensure_ascii=False))
+            return
+        con = Console()
+        if not entries:
+            con.print(f"no history yet ({hp} does not exist): run `lbscene compare {measurements}`")
+            return
+        t = Table(title=f"history of {measurements}", title_justify="left")
+        for c in ("step", "time", "what changed", "effects", "RMSE %", "noise %", "verdict", ""):
+            t.add_column(c, justify="right" if c in ("step", "RMSE %", "noise %") else "left")
+        top = max((e.get("rmse_percent") or 0) for e in entries) or 1.0
+        for e in entries:
+            r = e.get("rmse_percent")
+            bar = "█" * max(1, int(round(24 * (r or 0) / top))) if r is not None else ""
+            t.add_row(str(e.get("step", "")), str(e.get("time", ""))[:19], e.get("label", ""),
+                      ", ".join(sorted(e.get("effects", {}))) or "none",
+                      "—" if r is None else f"{r:.2f}",
+                      "—" if e.get("noise_percent_estimate") is None else f"{e['noise_percent_estimate']:.2g}",
+                      e.get("verdict", ""), bar)
+        con.print(t)
+        if plot is not None:
+            con.print(f"plot: {plot}")
