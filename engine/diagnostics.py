@@ -79,6 +79,7 @@ CODES: dict[str, str] = {
     "LB500": "command-line usage error",
     "LB600": "build/bake/render failed",
     "LB601": "bake products missing",
+    "LB602": "invalid bake job file",
 }
 
 

@@ -1,0 +1,138 @@
+"""
+Cross-check: Cycles (the second engine) against the analytic forward model.
+
+Two comparisons at measurement points (default: the seed's 55-point grid):
+
+* **direct** — the booth's surfaces absorb everything (``surfaces='black'``), so
+  Cycles delivers lamp light only: straight, through the diffuser (regular and
+  diffuse parts), past occluders, via mirror images.  The model runs with the
+  booth's effects minus ``interreflection``.
+* **interreflection** — the surfaces have their reflectances and Cycles traces
+  every bounce (up to the job's ``max_bounces``); the model runs with the
+  booth's effects, ``interreflection`` included.
+
+Both ignore the meter (``detector_cosine_error``): Cycles' sensors are ideal
+cosine receivers.  The report gives, per point, the spectral and photometric
+ratio Cycles/model and the bake's own noise estimate.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["CrossCheck", "cross_check", "bake_points"]
+
+#: effects the Cycles scene cannot represent at a receiver (instrument models)
+INSTRUMENT_EFFECTS = ("detector_cosine_error",)
+
+
+@dataclass
+class CrossCheck:
+    booth: str
+    lighting: str
+    mode: str
+    points_mm: np.ndarray
+    cycles_lx: np.ndarray
+    model_lx: np.ndarray
+    cycles_bands: np.ndarray
+    model_bands: np.ndarray
+    noise_rel: np.ndarray             # per point, relative σ of Cycles' illuminance
+    samples: int
+    time_s: float
+    effects: list[str] = field(default_factory=list)
+
+    @property
+    def ratio(self) -> np.ndarray:
+        return self.cycles_lx / self.model_lx
+
+    def summary(self) -> dict:
+        d = 100.0 * (self.ratio - 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rb = 100.0 * (self.cycles_bands / self.model_bands - 1.0)
+        band_mean = np.nanmean(np.where(self.model_bands > 1e-12 * self.model_bands.max(), rb, np.nan),
+                               axis=0)
+        return {"booth": self.booth, "lighting": self.lighting, "mode": self.mode,
+                "points": int(len(self.points_mm)), "samples": self.samples,
+                "time_s": round(self.time_s, 2), "effects": self.effects,
+                "mean_diff_percent": round(float(d.mean()), 3),
+                "rms_diff_percent": round(float(np.sqrt(np.mean(d ** 2))), 3),
+                "max_abs_diff_percent": round(float(np.abs(d).max()), 3),
+                "noise_rms_percent": round(float(100 * np.sqrt(np.mean(self.noise_rel ** 2))), 3),
+                "mean_model_lx": round(float(self.model_lx.mean()), 2),
+                "mean_cycles_lx": round(float(self.cycles_lx.mean()), 2),
+                "band_mean_diff_percent": [None if not np.isfinite(x) else round(float(x), 2)
+                                           for x in band_mean]}
+
+
+def bake_points(ir, lighting: str, points, normals=None, *, effects=None, surfaces="actual",
+                light_paths="all", quality="preview", samples=None, out_dir: Path | None = None,
+                progress: bool = False, max_bounces: int | None = None):
+    """Bake irradiance at points only (no maps); returns (bands (M, B), lux (M,), rel noise (M,), manifest)."""
+    import json
+
+    from .executor import BakeTask, run_tasks
+    from .from_ir import lighting_job
+
+    job = lighting_job(ir, lighting, quality=quality, samples=samples, effects=effects,
+                       surfaces=surfaces, points=points, normals=normals, light_paths=light_paths,
+                       environment=False, maps=False, grid=False,
+                       name=f"{lighting}.points.{surfaces}.{light_paths}")
+    if max_bounces is not None:
+        job = job.model_copy(update={"quality": job.quality.model_copy(update={"max_bounces": max_bounces})})
+    tmp = None
+    if out_dir is None:
+        tmp = tempfile.TemporaryDirectory(prefix="lbscene-xcheck-")
+        out_dir = Path(tmp.name) / job.name
+    try:
+        [res] = run_tasks([BakeTask(job, Path(out_dir))], progress=progress)
+        if res.status == "failed":
+            raise RuntimeError(f"Cycles bake failed: {res.error}\n" + "\n".join(res.log_tail[-15:]))
+        d = json.loads((Path(out_dir) / "points.points.json").read_text())
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    bands = np.array([list(p["irradiance_W_m2_nm"].values()) for p in d["points"]])
+    lux = np.array([p["illuminance_lx"] for p in d["points"]])
+    noise = np.array([p.get("illuminance_noise_relative", 0.0) for p in d["points"]])
+    return bands, lux, noise, res.manifest
+
+
+def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals=None,
+                quality: str = "preview", samples: int | None = None, effects=None,
+                out_dir: Path | None = None, progress: bool = False) -> CrossCheck:
+    """Compare Cycles with :class:`lbscene.engine.forward.ForwardModel` at points."""
+    import time
+
+    from lbscene.engine.forward import ForwardModel
+
+    from .from_ir import grid_points
+    from .products import band_photopic_weights
+
+    eff = dict(ir.effects if effects is None else effects)
+    for e in INSTRUMENT_EFFECTS:
+        eff.pop(e, None)
+    if mode == "direct":
+        eff.pop("interreflection", None)
+        surfaces = "black"
+    elif mode == "interreflection":
+        surfaces = "actual"
+    else:
+        raise ValueError(f"unknown cross-check mode {mode!r}")
+    P = grid_points(ir) if points is None else np.atleast_2d(np.asarray(points, float))
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1)) if normals is None else \
+        np.broadcast_to(np.asarray(normals, float), P.shape)
+    t0 = time.perf_counter()
+    bands, lux, noise, manifest = bake_points(
+        ir, lighting, P, N, effects=eff, surfaces=surfaces, quality=quality, samples=samples,
+        out_dir=out_dir, progress=progress)
+    elapsed = time.perf_counter() - t0
+    fm = ForwardModel(ir, lighting, effects=eff)
+    model_bands = np.asarray(fm.spectral_irradiance_bands(P, N), float)
+    # the same photometric weights on both sides: the comparison is of the transport
+    w = band_photopic_weights(ir.grid)
+    return CrossCheck(ir.booth_name, lighting, mode, P, lux, model_bands @ w, bands, model_bands, noise,
+                      manifest["products"]["points"]["samples"], elapsed, sorted(eff))

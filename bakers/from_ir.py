@@ -1,0 +1,380 @@
+"""
+Bake jobs from the scene IR: one job per lighting configuration.
+
+:func:`lighting_job` turns a :class:`~lbscene.engine.ir.SceneIR` and a
+lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
+
+* **surfaces**: every IR surface (box walls, floor, ceiling, platform, OBJ/USD
+  meshes) with its material's band reflectance (the lighting-dependent
+  projection when the IR has one, else the band mean);
+  ``surfaces='black'`` keeps the geometry but absorbs everything (direct light
+  only, through diffuser and mirrors: the cross-check of the model without
+  inter-reflection).
+* **lamps** that are on, at their dimming level: ``point_sources`` points
+  along a tube / over a panel, one for a bulb or point lamp, each with 1/N of
+  the lamp's peak spectral intensity (band means of the 1 nm spectrum, through
+  the lamp's filter when ``spectral_filter`` is on), true points as in the
+  analytic model.
+* **effects** follow the booth's ``effects:`` (or ``effects=``) exactly as the
+  analytic model reads them — angular profile, tube-end falloff, spectral
+  filter, diffuser (a clear sheet with Fresnel angular transmittance and a
+  Lambertian fraction), aperture occlusion (occluders become geometry that
+  blocks *every* lamp), reflector (a mirror image of the lamp that shines
+  only through the mirror's rectangle, the image method) — while Cycles does
+  the geometry: visibility, occlusion, inter-reflection.
+* **products**: an equirect environment map 1 mm above the sample position
+  (one per geometry when the luminaire turns with the platform) holding all
+  light *but* that seen straight from the point lamps (which no camera ray can
+  hit), plus ``sample_direct``: that direct irradiance at the same point for
+  the map's up normal, each geometry's sample normal and 62 directions over
+  the sphere; the floor (and platform) irradiance maps; the irradiance at
+  measurement points (default: the seed's 11 × 5 A3 grid around the sample).
+
+:func:`write_build_products` is the hook ``lbscene build`` calls: it writes
+``lighting/<NAME>/bake/job.json``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Iterable, Literal
+
+import numpy as np
+
+from .job import (AreaEmitter, BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
+                  GaussianProfile, IrradianceMapProduct, IrradiancePointsProduct, IsotropicProfile,
+                  JobMaterial, JobMesh, MeasurementPoint, PointEmitters, Quality, RigidTransform,
+                  TableProfile, TransmissiveSheet, Window, save_job)
+
+__all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
+           "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP"]
+
+#: environment map width (px) per quality preset
+ENV_WIDTH = {"preview": 128, "final": 256}
+#: floor map cell size (mm) per quality preset
+MAP_CELL_MM = {"preview": 50.0, "final": 25.0}
+LUMINAIRE_GROUP = "luminaire"
+BLACK = "lbscene_black"
+
+
+def _jid(s: str) -> str:
+    s = re.sub(r"[^A-Za-z0-9_.\-]", "_", s)
+    return s if re.match(r"^[A-Za-z_]", s) else f"_{s}"
+
+
+def grid_points(ir, nx: int = 11, ny: int = 5, width_mm: float = 400.0, depth_mm: float = 240.0):
+    """The seed's 55-point grid (11 × 5 over 400 × 240 mm, an A3 sheet) around the sample, facing up."""
+    sx, sy, sz = ir.sample_position_mm
+    x = sx + np.linspace(-width_mm / 2, width_mm / 2, nx)
+    y = sy + np.linspace(-depth_mm / 2, depth_mm / 2, ny)
+    X, Y = np.meshgrid(x, y, indexing="xy")
+    return np.c_[X.ravel(), Y.ravel(), np.full(X.size, float(sz))]
+
+
+def _effect(effects: dict, eid: str, lamp_id: str | None = None):
+    """Params dict of an enabled effect (None when off or the lamp is not selected)."""
+    if eid not in effects:
+        return None
+    p = effects[eid] or {}
+    if lamp_id is not None and p.get("lamps") is not None and lamp_id not in p["lamps"]:
+        return None
+    return p
+
+
+def _profile(lamp, effects):
+    p = _effect(effects, "angular_profile", lamp.id)
+    if p is None:
+        return IsotropicProfile()
+    prof = lamp.profile
+    t = prof.get("type")
+    if t == "gaussian":
+        return GaussianProfile(sigma_deg=float(prof["sigma_deg"]))
+    if t == "cosine_power":
+        return CosinePowerProfile(exponent=float(prof["exponent"]))
+    if t == "ies":
+        d = prof["data"]
+        cd = np.asarray(d["candela"], float).mean(axis=0)   # axial mean (as the model's IesShape)
+        return TableProfile(theta_deg=tuple(float(x) for x in d["vertical_deg"]),
+                            relative=tuple(float(x) for x in cd / cd.max()))
+    if p.get("sigma_deg") is not None:
+        return GaussianProfile(sigma_deg=float(p["sigma_deg"]))
+    return IsotropicProfile()
+
+
+def _lamp_points(lamp) -> tuple[np.ndarray, np.ndarray, float]:
+    """Point positions (N, 3), their position along the lamp s ∈ (−½, ½), and the spacing (mm)."""
+    pos = np.asarray(lamp.position_mm, float)
+    axis = np.asarray(lamp.axis, float)
+    n = lamp.point_sources
+    if lamp.kind == "tube" and lamp.length_mm > 0:
+        s = (np.arange(n) + 0.5) / n - 0.5
+        return pos + np.outer(s * lamp.length_mm, axis), s, lamp.length_mm / n
+    if lamp.kind == "panel" and lamp.length_mm > 0:
+        aim = np.asarray(lamp.aim, float)
+        wdir = np.cross(aim, axis)
+        wdir = wdir / (np.linalg.norm(wdir) or 1.0)
+        nu = max(1, int(round(math.sqrt(n * lamp.length_mm / max(lamp.width_mm, 1e-9)))))
+        nv = max(1, int(round(n / nu)))
+        U, W = np.meshgrid((np.arange(nu) + 0.5) / nu - 0.5, (np.arange(nv) + 0.5) / nv - 0.5,
+                           indexing="ij")
+        pts = pos + np.outer(U.ravel() * lamp.length_mm, axis) + np.outer(W.ravel() * lamp.width_mm, wdir)
+        return pts, U.ravel(), min(lamp.length_mm / nu, lamp.width_mm / nv)
+    return pos[None, :], np.zeros(1), math.inf
+
+
+def _mirror_window(lamp, refl) -> Window:
+    """The mirror rectangle behind a lamp (as the ``reflector`` effect defines it)."""
+    n = np.asarray(refl.normal, float)
+    c = np.asarray(lamp.position_mm, float) - n * refl.distance_mm
+    ax = np.asarray(lamp.axis, float)
+    ax = ax - n * (ax @ n)
+    if np.linalg.norm(ax) < 1e-9:
+        ax = np.cross(n, [1.0, 0.0, 0.0])
+        if np.linalg.norm(ax) < 1e-9:
+            ax = np.cross(n, [0.0, 1.0, 0.0])
+    ax = ax / np.linalg.norm(ax)
+    along = (lamp.length_mm if lamp.kind in ("tube", "panel") else refl.width_mm) / 2
+    return Window(centre_mm=tuple(c), normal=tuple(n), u_axis=tuple(ax),
+                  half_size_mm=(float(along), float(refl.width_mm / 2)))
+
+
+def _rect_quads(centre, normal, u, half, hole=None):
+    """Triangles of a rectangle (or a frame around a rectangular hole), facing ``normal``."""
+    c, n, u = (np.asarray(x, float) for x in (centre, normal, u))
+    u = u - n * (u @ n)
+    u = u / np.linalg.norm(u)
+    v = np.cross(n, u)
+
+    def quad(u0, u1, v0, v1):
+        return [c + a * u + b * v for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))]
+
+    hu, hv = half
+    if hole is None:
+        quads = [quad(-hu, hu, -hv, hv)]
+    else:
+        ou, ov = hole
+        quads = [quad(-hu, hu, -hv, -ov), quad(-hu, hu, ov, hv),
+                 quad(-hu, -ou, -ov, ov), quad(ou, hu, -ov, ov)]
+    verts, tris = [], []
+    for q in quads:
+        b = len(verts)
+        verts += [tuple(float(x) for x in p) for p in q]
+        tris += [(b, b + 1, b + 2), (b, b + 2, b + 3)]
+    return tuple(verts), tuple(tris)
+
+
+def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | None = None,
+                 effects: dict | None = None, surfaces: Literal["actual", "black"] = "actual",
+                 points=None, normals=None, point_names: Iterable[str] | None = None,
+                 light_paths: Literal["all", "direct"] = "all",
+                 environment: bool = True, maps: bool = True, grid: bool = True,
+                 env_width: int | None = None, name: str | None = None, seed: int = 0) -> BakeJob:
+    """The bake job of one lighting configuration of a compiled booth."""
+    if lighting not in ir.lighting:
+        raise KeyError(lighting)
+    effects = dict(ir.effects if effects is None else effects)
+    grid_spec = BandGridSpec(**{k: ir.bands[k] for k in ("first_centre_nm", "width_nm", "count")})
+    g = ir.grid
+    nb = g.count
+    notes = []
+
+    # ---- turning luminaire (illumination fixed to a rotating platform)
+    pf = ir.platform
+    turning = bool(pf is not None and pf.illumination_fixed_to_platform
+                   and any(x.platform_rotation_deg for x in ir.geometries))
+    lum_group = LUMINAIRE_GROUP if turning else None
+
+    # ---- materials
+    materials = {BLACK: JobMaterial(type="diffuse", reflectance=(0.0,) * nb)}
+    for mid, m in ir.materials.items():
+        refl = m.reflectance_bands_by_lighting.get(lighting) or m.reflectance.bands
+        refl = tuple(float(min(max(x, 0.0), 1.0)) for x in refl)
+        materials[_jid(mid)] = JobMaterial(type=m.type, reflectance=refl, roughness=m.roughness)
+
+    def mat(mid):
+        return BLACK if (surfaces == "black" or mid is None) else _jid(mid)
+
+    # ---- surfaces
+    meshes = []
+    for s in ir.surfaces:
+        grp = lum_group if s.role in ("mesh", "platform") else None
+        meshes.append(JobMesh(id=_jid(f"surface.{s.id}"), material=mat(s.material),
+                              vertices_mm=s.vertices_mm, triangles=s.triangles, role=s.role, group=grp))
+
+    # ---- occluders
+    occ = _effect(effects, "aperture_occlusion")
+    if occ is not None:
+        scale = float(occ.get("opening_scale", 1.0))
+        on = set(ir.lighting[lighting].lamps)
+        for o in ir.occluders:
+            if occ.get("occluders") is not None and o.id not in occ["occluders"]:
+                continue
+            half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
+            hole = None
+            if o.type == "aperture_plate" and o.opening_mm is not None:
+                hole = (min(o.opening_mm[0] * scale / 2, half[0]), min(o.opening_mm[1] * scale / 2, half[1]))
+            v, t = _rect_quads(o.centre_mm, o.normal, o.u_axis, half, hole)
+            meshes.append(JobMesh(id=_jid(f"occluder.{o.id}"), material=mat(o.material), vertices_mm=v,
+                                  triangles=t, role="occluder", group=lum_group))
+            if o.lamps is not None and on - set(o.lamps):
+                notes.append(f"occluder {o.id} blocks every lamp in Cycles (the model: only "
+                             f"{', '.join(o.lamps)})")
+
+    # ---- lamps
+    emitters = []
+    for lamp, level in ir.lamps_on(lighting):
+        spec = np.asarray(lamp.peak_intensity_1nm, float) * float(level)
+        filt = _effect(effects, "spectral_filter")
+        if filt is not None and (filt.get("lamps") is None or lamp.id in filt["lamps"]):
+            fid = filt.get("filter") or lamp.filter
+            if fid and fid in ir.filters:
+                spec = spec * ir.filters[fid].transmittance.array_1nm
+        pts, s, spacing = _lamp_points(lamp)
+        w = np.ones(len(pts))
+        tef = _effect(effects, "tube_end_falloff", lamp.id)
+        if tef is not None and lamp.kind == "tube":
+            d_end = (0.5 - np.abs(s)) * lamp.length_mm
+            t = np.clip(d_end / float(tef.get("falloff_length_mm", 100.0)), 0.0, 1.0)
+            end = float(tef.get("end_level", 0.5))
+            w = end + (1.0 - end) * t
+        per_point = g.integrate(spec) / len(pts)
+        profile = _profile(lamp, effects)
+        # true points (radius 0), as in the analytic model: exact inverse-square law, hard
+        # shadows; camera rays do not see them (see the environment maps' direct product)
+        common = dict(intensity_W_sr_nm=tuple(float(x) for x in per_point), profile=profile,
+                      radius_mm=0.0, group=lum_group,
+                      weights=None if np.allclose(w, 1.0) else tuple(float(x) for x in w))
+        emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim,
+                                      positions_mm=tuple(tuple(float(c) for c in p) for p in pts),
+                                      **common))
+        rp = _effect(effects, "reflector", lamp.id)
+        if rp is not None and lamp.reflector and lamp.reflector in ir.reflectors:
+            refl = ir.reflectors[lamp.reflector]
+            win = _mirror_window(lamp, refl)
+            n = np.asarray(win.normal)
+            c = np.asarray(win.centre_mm)
+            img = pts - 2.0 * ((pts - c) @ n)[:, None] * n[None, :]
+            R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)
+            img_bands = g.integrate(spec * R) / len(pts)
+            aim = np.asarray(lamp.aim, float)
+            common["intensity_W_sr_nm"] = tuple(float(x) for x in img_bands)
+            emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}.mirror"),
+                                          aim=tuple(aim - 2.0 * (aim @ n) * n),
+                                          positions_mm=tuple(tuple(float(c) for c in p) for p in img),
+                                          window=win, **common))
+            # the mirror itself: an absorbing plate that blocks the lamp's back light
+            v, t = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
+            meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=v,
+                                  triangles=t, role="mirror", group=lum_group))
+
+    # ---- diffuser
+    sheets = []
+    dp = _effect(effects, "diffuser")
+    if dp is not None and ir.diffuser is not None:
+        d = ir.diffuser
+        T = np.clip(np.asarray(d.transmittance.bands) * float(dp.get("transmittance_scale", 1.0)), 0, 1)
+        sc = d.scattering
+        fd = dp.get("diffuse_fraction")
+        if fd is None:
+            fd = sc.get("diffuse_fraction", 0.0) if sc.get("type") == "lambertian" else 0.0
+        v, t = _rect_quads((d.centre_mm[0], d.centre_mm[1], d.z_mm), (0, 0, -1), (1, 0, 0),
+                           (d.size_mm[0] / 2, d.size_mm[1] / 2))
+        sheets.append(TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
+                                        transmittance=tuple(float(x) for x in T), ior=d.ior,
+                                        roughness=float(sc.get("roughness", 0.0)),
+                                        diffuse_fraction=float(fd), thickness_mm=d.thickness_mm,
+                                        group=lum_group))
+
+    # ---- products
+    products = []
+    sample = np.asarray(ir.sample_position_mm, float)
+    if environment:
+        width = env_width or ENV_WIDTH[quality]
+
+        def env_pair(suffix, up, fwd, geometry, transforms, normals):
+            pos = tuple(float(x) for x in sample + 1.0 * up)
+            dirs = [("up", up)] + normals + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
+            direct = IrradiancePointsProduct(
+                id=_jid(f"sample_direct{suffix}"), light_paths="direct", group_transforms=transforms,
+                points=tuple(MeasurementPoint(position_mm=pos, normal=tuple(map(float, d)), name=nm)
+                             for nm, d in dirs), offset_mm=0.0)
+            env = EnvironmentMapProduct(id=_jid(f"env{suffix}"), position_mm=pos, forward=tuple(fwd),
+                                        up=tuple(up), width_px=width, geometry=geometry,
+                                        group_transforms=transforms, direct_product=direct.id)
+            products.extend([env, direct])
+
+        if turning:
+            for geo in ir.geometries:
+                tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
+                                    centre_mm=pf.centre_mm)
+                M = tr.matrix()[:3, :3]
+                env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
+                         geo.name, {LUMINAIRE_GROUP: tr}, [])
+        else:
+            normals = []
+            if pf is not None:   # a tilting platform without the luminaire: the sample normals
+                for geo in ir.geometries:
+                    if geo.platform_rotation_deg:
+                        tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg),
+                                            centre_mm=pf.centre_mm)
+                        normals.append((f"geo:{geo.name}", tr.matrix()[:3, :3] @ np.array([0.0, 0.0, 1.0])))
+            env_pair("", np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), None, {}, normals)
+    if maps:
+        cell = MAP_CELL_MM[quality]
+        it = ir.interior
+        nx, ny = max(2, round(it.width_mm / cell)), max(2, round(it.depth_mm / cell))
+        products.append(IrradianceMapProduct(id="floor", origin_mm=(-it.width_mm / 2, -it.depth_mm / 2, 0.0),
+                                             size_mm=(it.width_mm, it.depth_mm), resolution=(nx, ny),
+                                             light_paths=light_paths))
+        if pf is not None and not turning:
+            cx, cy, cz = pf.centre_mm
+            sx, sy = pf.size_mm
+            products.append(IrradianceMapProduct(
+                id="platform", origin_mm=(cx - sx / 2, cy - sy / 2, cz), size_mm=(sx, sy),
+                resolution=(max(2, round(sx / cell)), max(2, round(sy / cell))), light_paths=light_paths))
+    if grid or points is not None:
+        if points is None:
+            P = grid_points(ir)
+            names = [f"g{i:02d}" for i in range(len(P))]
+            N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+        else:
+            P = np.atleast_2d(np.asarray(points, float))
+            N = np.tile([0.0, 0.0, 1.0], (len(P), 1)) if normals is None else \
+                np.broadcast_to(np.asarray(normals, float), P.shape)
+            names = list(point_names) if point_names is not None else [f"p{i}" for i in range(len(P))]
+        products.append(IrradiancePointsProduct(
+            id="grid" if points is None else "points",
+            points=tuple(MeasurementPoint(position_mm=tuple(map(float, p)), normal=tuple(map(float, n)),
+                                          name=nm) for p, n, nm in zip(P, N, names)),
+            light_paths=light_paths))
+
+    source = {"ir_hash": ir.content_hash, "booth": ir.booth_name, "lighting": lighting,
+              "surfaces": surfaces, "effects": ",".join(sorted(effects))}
+    if notes:
+        source["notes"] = "; ".join(notes)
+    return BakeJob(name=_jid(name or lighting), source=source, bands=grid_spec, materials=materials,
+                   meshes=tuple(meshes), emitters=tuple(emitters), sheets=tuple(sheets),
+                   products=tuple(products),
+                   quality=Quality(preset=quality, samples=samples, seed=seed))
+
+
+def _sphere_dirs(n: int) -> np.ndarray:
+    """``n`` near-uniform unit vectors (Fibonacci sphere)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = math.pi * (1.0 + math.sqrt(5.0)) * k
+    r = np.sqrt(1.0 - z * z)
+    return np.c_[r * np.cos(phi), r * np.sin(phi), z]
+
+
+def job_path_in_build(build_dir: Path, lighting: str) -> Path:
+    return Path(build_dir) / "lighting" / lighting / "bake" / "job.json"
+
+
+def write_build_products(ir, lighting: str, folder: Path) -> list[Path]:
+    """``lbscene build`` hook: the preview bake job of this lighting, ``bake/job.json``."""
+    path = Path(folder) / "bake" / "job.json"
+    save_job(lighting_job(ir, lighting), path)
+    return [path]

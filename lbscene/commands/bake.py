@@ -1,0 +1,146 @@
+"""``lbscene bake BUILD_DIR_OR_BOOTH [--lighting NAME] [--quality preview|final] [--samples N]``
+
+Runs the Cycles bake jobs of a booth (one per lighting configuration), each in
+its own process, with a content-hash cache: an unchanged job is not baked
+again, an interrupted run resumes with the jobs that are left.
+
+Products go to ``<build dir>/bake/<lighting>/`` (for a booth argument, the
+build dir is ``build/<booth folder>``, as ``lbscene build`` uses), where the
+realtime renderer finds them.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from enum import Enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+class QualityName(str, Enum):
+    preview = "preview"
+    final = "final"
+
+
+def _load_targets(target: Path, lighting: Optional[str], quality: str, samples: Optional[int],
+                  allowed_dirs) -> tuple[object, Path, list]:
+    """(IR, build dir, [(lighting, job)]) for a build folder or a booth."""
+    from lbscene.bakers.from_ir import job_path_in_build, lighting_job
+    from lbscene.bakers.job import load_job
+    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.ir import SceneIR
+
+    if target.is_dir() and (target / "scene.ir.json").is_file():
+        build_dir = target
+        try:
+            ir = SceneIR.model_validate_json((target / "scene.ir.json").read_text())
+        except ValueError as exc:
+            raise LbsceneUserError.single("LB601", f"unreadable scene IR: {str(exc)[:200]}",
+                                          str(target / "scene.ir.json"),
+                                          expected="a build folder written by `lbscene build`") from None
+        from_build = True
+    else:
+        from lbscene.engine.compile import compile_booth, find_booth_file
+
+        booth_file = find_booth_file(target)
+        ir = compile_booth(booth_file, allowed_dirs=allowed_dirs)
+        build_dir = Path("build") / booth_file.resolve().parent.name
+        from_build = False
+    names = list(ir.lighting)
+    if lighting is not None:
+        if lighting not in ir.lighting:
+            raise LbsceneUserError.single(
+                "LB500", f"booth has no lighting configuration {lighting!r}", str(target),
+                value=repr(lighting), expected=f"one of {', '.join(names)}")
+        names = [lighting]
+    jobs = []
+    for name in names:
+        job = None
+        jp = job_path_in_build(build_dir, name)
+        if from_build and jp.is_file():
+            j = load_job(jp)
+            if j.quality.preset == quality:   # resolutions follow the preset: else regenerate
+                job = j
+        if job is None:
+            job = lighting_job(ir, name, quality=quality)
+        if samples is not None:
+            job = job.with_quality(samples=samples)
+        jobs.append((name, job))
+    return ir, build_dir, jobs
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("bake")
+    def bake(
+        target: Path = typer.Argument(..., help="Build folder (from `lbscene build`) or booth folder/file."),
+        lighting: Optional[str] = typer.Option(None, "--lighting", "-l", help="Only this lighting."),
+        quality: QualityName = typer.Option(QualityName.preview, "--quality", "-q",
+                                            help="preview (fast) or final (≤ 1 % noise at grid points)."),
+        samples: Optional[int] = typer.Option(None, "--samples", "-s", min=2,
+                                              help="Samples per pixel/texel for every product."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o",
+                                           help="Folder of the bakes (default: <build dir>/bake)."),
+        force: bool = typer.Option(False, "--force", help="Bake again even when cached."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+        allow_path: Optional[List[Path]] = typer.Option(
+            None, "--allow-path", help="Extra folder file references may point into."),
+    ) -> None:
+        """Bake spectral light products of a booth with Blender Cycles (env maps, irradiance)."""
+        from rich.console import Console
+        from rich.table import Table
+
+        from lbscene.bakers.executor import BakeTask, run_tasks
+
+        t0 = time.perf_counter()
+        ir, build_dir, jobs = _load_targets(target, lighting, quality.value, samples,
+                                            tuple(allow_path or ()))
+        root = out or (build_dir / "bake")
+        tasks = [BakeTask(job, root / name, label=f"{ir.booth_name} · {name}") for name, job in jobs]
+        results = run_tasks(tasks, force=force, progress=format is Format.text)
+        elapsed = time.perf_counter() - t0
+        rows = []
+        for (name, job), r in zip(jobs, results):
+            row = {"lighting": name, "status": r.status, "out_dir": str(r.task.out_dir),
+                   "job_hash": job.content_hash, "time_s": round(r.time_s, 2), "error": r.error}
+            m = r.manifest or {}
+            prods = m.get("products", {})
+            if "grid" in prods:
+                g = prods["grid"]
+                row["grid_mean_lx"] = round(g["illuminance_lx"]["mean"], 2)
+                row["grid_samples"] = g["samples"]
+                if g.get("noise"):
+                    row["grid_noise_percent"] = round(100 * g["noise"]["illuminance_relative_rms"], 3)
+            envs = [p for p in prods.values() if p["type"] == "environment_map"]
+            if envs:
+                row["sample_lx_from_env"] = round(envs[0]["sample_irradiance"]["illuminance_lx"], 2)
+            rows.append(row)
+        failed = [r for r in results if r.status == "failed"]
+        if format is Format.json:
+            typer.echo(json.dumps({"booth": ir.booth_name, "ir_hash": ir.content_hash,
+                                   "quality": quality.value, "elapsed_s": round(elapsed, 2),
+                                   "bakes": rows}, indent=2, ensure_ascii=False))
+        else:
+            table = Table(title=f"{ir.booth_name}: Cycles bakes ({quality.value}) → {root}")
+            for col in ("lighting", "status", "time s", "grid mean lx", "grid noise %", "sample lx (env)"):
+                table.add_column(col)
+            for row in rows:
+                table.add_row(row["lighting"], row["status"], f"{row['time_s']:.1f}",
+                              f"{row.get('grid_mean_lx', float('nan')):.1f}",
+                              f"{row.get('grid_noise_percent', float('nan')):.2f}",
+                              f"{row.get('sample_lx_from_env', float('nan')):.1f}")
+            Console().print(table)
+            typer.echo(f"{len(results) - len(failed)}/{len(results)} bakes ready ({elapsed:.1f} s)")
+            for r in failed:
+                typer.echo(f"error LB600: bake {r.task.label} failed: {r.error}", err=True)
+                for line in r.log_tail[-8:]:
+                    typer.echo(f"    {line}", err=True)
+        if failed:
+            raise typer.Exit(1)
