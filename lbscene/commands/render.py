@@ -1,0 +1,190 @@
+"""``lbscene render CONFIG.yaml [-o out.png] [--geometry 45as15] [--size 1024x768] [--all-geometries]``"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from enum import Enum
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+class Format(str, Enum):
+    text = "text"
+    json = "json"
+
+
+class Diffuse(str, Enum):
+    auto = "auto"
+    baked = "baked"
+    analytic = "analytic"
+
+
+def _usage_error(message: str, value: str, expected: str):
+    from lbscene.engine.diagnostics import LbsceneUserError
+
+    return LbsceneUserError.single("LB500", message, value=value, expected=expected)
+
+
+def _run_bake(job, console) -> None:
+    """Build the booth and bake the configuration's lighting (separate processes)."""
+    from lbscene.engine.compile import find_booth_file
+
+    booth_file = find_booth_file(Path(job["booth"]))
+    build_dir = Path("build") / booth_file.resolve().parent.name
+    for cmd in ([sys.executable, "-m", "lbscene", "build", str(booth_file), "--out", str(build_dir)],
+                [sys.executable, "-m", "lbscene", "bake", str(build_dir), "--lighting", job["lighting"]]):
+        console.print(f"[bold]running[/bold] {' '.join(cmd[2:])}")
+        rc = subprocess.call(cmd)
+        if rc != 0:
+            from lbscene.engine.diagnostics import LbsceneUserError
+
+            raise LbsceneUserError.single("LB600", f"`{' '.join(cmd[2:])}` failed (exit {rc})",
+                                          expected="a successful bake")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("render")
+    def render(
+        config: Path = typer.Argument(..., help="Render configuration (kind: render_config)."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o", help="PNG to write (default: the config's output.png)."),
+        geometry: Optional[str] = typer.Option(None, "--geometry", "-g", help="Viewing geometry, e.g. 45as15."),
+        size: Optional[str] = typer.Option(None, "--size", help="WIDTHxHEIGHT in pixels (16..8192 each)."),
+        all_geometries: bool = typer.Option(False, "--all-geometries",
+                                            help="Render every geometry of the booth into one contact sheet."),
+        xyz: Optional[Path] = typer.Option(None, "--xyz", help="Also write the float XYZ image (.npy or .exr)."),
+        diffuse: Optional[Diffuse] = typer.Option(None, "--diffuse",
+                                                  help="Override the config: auto, baked or analytic."),
+        bake: bool = typer.Option(False, "--bake", help="Run a missing bake (build + bake) before rendering."),
+        no_input: bool = typer.Option(False, "--no-input", help="Never ask questions (CI)."),
+        egl_device: Optional[int] = typer.Option(None, "--egl-device", help="EGL device index (GPU choice)."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+        allow_path: Optional[List[Path]] = typer.Option(
+            None, "--allow-path", help="Extra folder file references may point into."),
+    ) -> None:
+        """Render a sample in a virtual booth (spectral, 16 bands) to a display-encoded PNG."""
+        from rich.console import Console
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+        from lbscene.engine.diagnostics import LbsceneUserError
+        from lbscene.engine.load import display_path
+        from lbscene.runtimes.render import contact_sheet, parse_size, prepare_from_config, write_png, write_xyz
+
+        console = Console(stderr=True)
+        wh = None
+        if size is not None:
+            try:
+                wh = parse_size(size)
+            except ValueError as exc:
+                raise _usage_error(f"--size: {exc}", size, "WIDTHxHEIGHT with each side 16..8192")
+        if xyz is not None and xyz.suffix.lower() not in (".npy", ".exr"):
+            raise _usage_error("--xyz must name a .npy or .exr file", str(xyz), "a .npy or .exr file name")
+        if geometry is not None and all_geometries:
+            raise _usage_error("--geometry and --all-geometries exclude each other", geometry,
+                               "one of them")
+
+        def prepare():
+            return prepare_from_config(config, geometry=geometry, all_geometries=all_geometries, size=wh,
+                                       png=out, xyz=xyz, diffuse=diffuse.value if diffuse else None,
+                                       allowed_dirs=tuple(allow_path or ()))
+
+        t_start = time.perf_counter()
+        try:
+            job = prepare()
+        except LbsceneUserError as exc:
+            missing = [d for d in exc.diagnostics if d.code == "LB601"]
+            if not missing:
+                raise
+            ask = not no_input and not bake and sys.stdin.isatty() and format is Format.text
+            if ask:
+                from lbscene.cli import print_diagnostics
+
+                print_diagnostics(exc.diagnostics)
+                if not typer.confirm("Run the bake now (build + bake; may take minutes)?", default=False):
+                    raise
+            elif not bake:
+                raise
+            import ruamel.yaml  # the config names booth and lighting; read them without validating twice
+
+            raw = ruamel.yaml.YAML(typ="safe").load(Path(config).read_text())
+            booth = Path(config).resolve().parent / raw["booth"]
+            _run_bake({"booth": str(booth), "lighting": raw["lighting"]}, console)
+            job = prepare()
+
+        from lbscene.runtimes.executor import GLUnavailableError
+
+        frames = []
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                      console=console, transient=True, disable=format is Format.json) as prog:
+            task = prog.add_task("render: GL context", total=None)
+            try:
+                renderer = job.renderer(device_index=egl_device)
+            except GLUnavailableError as exc:
+                raise LbsceneUserError.single(
+                    "LB600", str(exc), expected="an OpenGL 3.3 context through EGL",
+                    hint="install Mesa's EGL (libegl1, libgl1-mesa-dri) or pick a device with --egl-device")
+            try:
+                for v in job.views:
+                    prog.update(task, description=f"render: {v}: light at the vertices (forward model)")
+                    renderer.scene.view(v)
+                    prog.update(task, description=f"render: {v}: {job.size[0]}x{job.size[1]}")
+                    frames.append(renderer.render(v, job.size, want_xyz=job.xyz is not None, want_gamut=True))
+                gl_name = renderer.gl_renderer
+            finally:
+                renderer.close()
+
+        meta = {"lbscene:booth": job.ir.booth_name, "lbscene:ir_hash": job.ir.content_hash[:16],
+                "lbscene:lighting": job.graph["lighting"], "lbscene:sample": job.sample.name,
+                "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames)}
+        if len(frames) == 1:
+            write_png(job.png, frames[0].rgba8, meta)
+        else:
+            write_png(job.png, contact_sheet(frames), meta)
+        xyz_files = []
+        if job.xyz is not None:
+            for f in frames:
+                p = job.xyz if len(frames) == 1 else job.xyz.with_name(f"{job.xyz.stem}.{f.view}{job.xyz.suffix}")
+                write_xyz(p, f.xyz)
+                xyz_files.append(str(p))
+        elapsed = time.perf_counter() - t_start
+
+        from lbscene.runtimes.colour_bridge import colour_module_features
+
+        result = {
+            "config": str(config), "png": str(job.png), "xyz": xyz_files, "size": list(job.size),
+            "booth": job.ir.booth_name, "lighting": job.graph["lighting"], "sample": job.sample.name,
+            "display": job.display.name, "diffuse": job.diffuse, "bake": job.bake_note or None,
+            "gl_renderer": gl_name, "elapsed_s": round(elapsed, 3), "notes": job.notes,
+            "colour_module": colour_module_features(),
+            "views": [{"view": f.view, "realised": f.info.get("realised"),
+                       "platform_rotation_deg": f.info.get("platform_rotation_deg"),
+                       "sample_illuminance_lx": round(f.info.get("sample_illuminance_lx", 0.0), 3),
+                       "out_of_gamut": f.out_of_gamut} for f in frames],
+        }
+        if format is Format.json:
+            typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
+            return
+        from rich.table import Table
+
+        table = Table(title=f"{job.ir.booth_name} / {job.graph['lighting']} / {job.sample.name}")
+        for col in ("view", "illum °", "view °", "aspec °", "sample lx", "out of gamut"):
+            table.add_column(col, justify="right" if col != "view" else "left")
+        for f in frames:
+            r = f.info.get("realised") or {}
+            og = f.out_of_gamut or {}
+            table.add_row(f.view, f"{r.get('illumination_deg', 0):.1f}", f"{r.get('viewing_deg', 0):.1f}",
+                          f"{r.get('aspecular_deg', 0):.1f}", f"{f.info.get('sample_illuminance_lx', 0):.0f}",
+                          f"{og.get('pixels', 0)} px ({100 * og.get('fraction', 0):.1f} %, max {og.get('max_excess', 0):.3f})")
+        Console().print(table)
+        if job.diffuse == "analytic" and job.bake_note:
+            typer.echo(f"note: diffuse light is analytic: {job.bake_note}; run `lbscene bake` for baked "
+                       "lighting", err=True)
+        for n in job.notes:
+            typer.echo(f"note: {n}", err=True)
+        typer.echo(f"wrote {display_path(job.png)}" + (f" and {', '.join(xyz_files)}" if xyz_files else "")
+                   + f"  ({job.size[0]}x{job.size[1]}, {job.diffuse} diffuse light, display "
+                     f"{job.display.name}, {gl_name}, {elapsed:.1f} s)")

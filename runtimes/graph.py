@@ -1,0 +1,550 @@
+"""
+The declarative realtime render graph of one booth and lighting configuration.
+
+``lbscene build`` calls :func:`write_build_products` for every lighting
+configuration; it writes ``lighting/<NAME>/render_graph.json``, which the
+moderngl runtime (:mod:`lbscene.runtimes.executor`) executes.  The graph is
+plain data (canonical JSON, byte-identical for the same IR):
+
+``passes``
+    Every pass; ``schedules`` says which run, in order (``analysis``: all
+    intermediate images; ``realtime``: the full-screen stages fused into
+    ``resolve``).  ``raster`` passes draw meshes (``draws``), ``fullscreen``
+    passes run a fragment shader once per pixel.  Each names its program
+    (GLSL ES 3.00 files in ``runtimes/shaders``), compile-time ``defines``
+    (``#define NAME value`` lines the runtime puts after ``#version``; the
+    files default them), the textures it samples
+    (``textures``: sampler uniform → texture resource), its ``uniforms``
+    (uniform → binding, see below) and its ``outputs`` (colour attachments in
+    location order, optional depth).
+``resources``
+    ``textures``: render targets (``size: "viewport"``) and data textures
+    (``source`` says who fills them); ``meshes``: vertex streams built from the
+    IR's surfaces (``surfaces``) or from a render-time parameter (the sample),
+    with their attribute layout and where their per-vertex irradiance comes
+    from.
+``bindings``
+    A binding is a string naming a value the runtime computes per frame
+    (``view.view_proj``, ``view.xyz_weights``, ``display.xyz_to_rgb`` …) or
+    ``{"value": …}`` for a constant.  ``values`` documents each name.
+``scene``
+    Materials (band reflectances for this lighting), emitters (lamps as area
+    and line lights for the LTC highlights), the sample placement and the
+    platform.
+``views``
+    One per viewing geometry of the booth (or one ``default`` view): platform
+    rotation, the geometry it realises at the sample, the default camera.
+``parameters``
+    What a render configuration supplies: view, sample, display, camera,
+    viewport, diffuse light source, exposure, dithering.
+
+Spectral data flow: 16 bands travel as four RGBA32F blocks (band ``4k + c`` in
+channel ``c`` of block ``k``) from the materials and irradiance through the
+shading pass to ``spectral_radiance_0..3`` (W·sr⁻¹·m⁻²·nm⁻¹, band means);
+``spectral_to_xyz`` weights them into absolute XYZ (Y in cd·m⁻²); ``display``
+applies the display model; ``dither`` quantises to 8 bits with a blue-noise
+mask.
+
+Examples
+--------
+>>> from lbscene.engine.compile import compile_booth          # doctest: +SKIP
+>>> g = build_render_graph(compile_booth("tests/data/minimal-booth"), "A")  # doctest: +SKIP
+>>> g["schedules"]["analysis"]                                # doctest: +SKIP
+['surfaces', 'spectral_to_xyz', 'display', 'dither']
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "GRAPH_FORMAT",
+    "GRAPH_VERSION",
+    "GRAPH_FILENAME",
+    "SHADER_DIR",
+    "EMITTER_TEXELS",
+    "PROFILE_SAMPLES",
+    "SAMPLE_LIFT_MM",
+    "build_render_graph",
+    "write_build_products",
+    "load_render_graph",
+    "rotation_matrix",
+    "realised_geometry",
+    "view_names",
+    "shader_sources",
+    "SCHEDULES",
+]
+
+GRAPH_FORMAT = "lbscene.render_graph"
+GRAPH_VERSION = 1
+GRAPH_FILENAME = "render_graph.json"
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+#: Texels per emitter row of the ``emitters`` data texture (see sample.frag).
+EMITTER_TEXELS = 24
+#: Samples of an emitter's angular profile f(θ), θ = 0…180°, stored in its row.
+PROFILE_SAMPLES = 64
+#: The sample sits this far above the platform/floor (avoids depth fighting).
+SAMPLE_LIFT_MM = 0.5
+#: Radius given to ``point`` lamps so that their highlight has a finite size.
+POINT_LAMP_RADIUS_MM = 2.0
+SPECTRAL_TARGETS = [f"spectral_radiance_{k}" for k in range(4)]
+
+
+def _r(x: float) -> float:
+    return float(f"{float(x):.10g}")
+
+
+def _rv(v) -> list[float]:
+    return [_r(x) for x in np.asarray(v, float).ravel()]
+
+
+# --------------------------------------------------------------------------- geometry of views
+
+def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
+    """Right-handed rotation (3×3) by ``angle_deg`` about the unit ``axis`` (Rodrigues)."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    t = np.radians(angle_deg)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * (k @ k)
+
+
+def _illumination_centre(ir, lighting: str) -> np.ndarray:
+    """Luminous-intensity-weighted centre of the lamps that are on (the geometry's light)."""
+    s = np.asarray(ir.sample_position_mm, float)
+    pts, w = [], []
+    for lamp, level in ir.lamps_on(lighting):
+        c = np.asarray(lamp.position_mm, float)
+        d = np.linalg.norm(c - s) * 1e-3
+        pts.append(c)
+        w.append(max(level * lamp.peak_luminous_intensity_cd, 1e-12) / max(d * d, 1e-9))
+    w = np.asarray(w)
+    return (np.asarray(pts) * w[:, None]).sum(axis=0) / w.sum()
+
+
+def _platform_frame(ir):
+    if ir.platform is None:
+        return np.zeros(3), np.array([1.0, 0.0, 0.0]), False
+    return (np.asarray(ir.platform.centre_mm, float), np.asarray(ir.platform.rotation_axis, float),
+            bool(ir.platform.illumination_fixed_to_platform))
+
+
+def realised_geometry(ir, lighting: str, rotation_deg: float, eye_mm=None) -> dict:
+    """Illumination, viewing and aspecular angles (degrees) at the sample centre for a
+    platform rotation, with the booth's observer (or ``eye_mm``)."""
+    origin, axis, lamps_rotate = _platform_frame(ir)
+    r = rotation_matrix(axis, rotation_deg)
+    s = r @ (np.asarray(ir.sample_position_mm, float) - origin) + origin
+    n = r @ np.array([0.0, 0.0, 1.0])
+    c = _illumination_centre(ir, lighting)
+    if lamps_rotate:
+        c = r @ (c - origin) + origin
+    eye = np.asarray(ir.observer.position_mm if eye_mm is None else eye_mm, float)
+    l = (c - s) / np.linalg.norm(c - s)
+    v = (eye - s) / np.linalg.norm(eye - s)
+    t = l - n * (l @ n)
+    t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else np.cross(n, [1.0, 0.0, 0.0])
+    theta_i = np.degrees(np.arccos(np.clip(l @ n, -1.0, 1.0)))
+    theta_v = np.degrees(np.arctan2(-(v @ t), v @ n))
+    # (+ 0.0 turns a rounded −0.0 into 0.0)
+    return {"illumination_deg": _r(round(theta_i, 4) + 0.0), "viewing_deg": _r(round(theta_v, 4) + 0.0),
+            "aspecular_deg": _r(round(theta_i - theta_v, 4) + 0.0)}
+
+
+def _solve_rotation(ir, lighting: str, geom) -> tuple[float, str]:
+    """Platform rotation realising ``geom``'s aspecular angle (declared one wins)."""
+    if geom.platform_rotation_deg is not None:
+        return float(geom.platform_rotation_deg), "declared"
+    if ir.platform is None:
+        return 0.0, "no_platform"
+    from scipy.optimize import brentq
+
+    def err(phi):
+        return realised_geometry(ir, lighting, phi)["aspecular_deg"] - geom.aspecular_deg
+
+    grid = np.arange(-120.0, 120.5, 1.0)
+    e = np.array([err(p) for p in grid])
+    roots = []
+    for i in range(len(grid) - 1):
+        if np.sign(e[i]) != np.sign(e[i + 1]) and abs(e[i] - e[i + 1]) < 90:
+            roots.append(brentq(err, grid[i], grid[i + 1], xtol=1e-6))
+    if roots:
+        return float(min(roots, key=abs)), "solved"
+    return float(grid[int(np.argmin(np.abs(e)))]), "closest"
+
+
+def view_names(ir) -> list[str]:
+    """Names of the views of a booth: its geometries, or ``['default']``."""
+    return [g.name for g in ir.geometries] or ["default"]
+
+
+def _views(ir, lighting: str) -> list[dict]:
+    origin, axis, lamps_rotate = _platform_frame(ir)
+    out = []
+    geoms = list(ir.geometries) or [None]
+    for g in geoms:
+        if g is None:
+            rot, how = 0.0, "none"
+            nominal = None
+        else:
+            rot, how = _solve_rotation(ir, lighting, g)
+            nominal = {"name": g.name, "illumination_deg": g.illumination_deg,
+                       "aspecular_deg": g.aspecular_deg, "viewing_deg": g.viewing_deg}
+        r = rotation_matrix(axis, rot)
+        s = r @ (np.asarray(ir.sample_position_mm, float) - origin) + origin
+        out.append({
+            "name": g.name if g is not None else "default",
+            "geometry": nominal,
+            "platform_rotation_deg": _r(round(rot, 6)),
+            "rotation_source": how,
+            "rotation": {"axis": _rv(axis), "origin_mm": _rv(origin), "angle_deg": _r(round(rot, 6))},
+            "realised": realised_geometry(ir, lighting, rot),
+            "camera": {"position_mm": _rv(ir.observer.position_mm), "look_at_mm": _rv(np.round(s, 6)),
+                       "up": [0.0, 0.0, 1.0]},
+        })
+    return out
+
+
+# --------------------------------------------------------------------------- scene description
+
+def _material_bands(ir, material, lighting: str) -> tuple[list[float], str]:
+    by = material.reflectance_bands_by_lighting.get(lighting)
+    if by:
+        return _rv(by), f"projected:{lighting}"
+    return _rv(material.reflectance.bands), "band_means"
+
+
+def _profile_samples(ir, lamp) -> list[float]:
+    """f(θ) at PROFILE_SAMPLES angles 0…180° (1 everywhere without the angular_profile effect)."""
+    theta = np.linspace(0.0, np.pi, PROFILE_SAMPLES)
+    if "angular_profile" not in ir.effects:
+        return [1.0] * PROFILE_SAMPLES
+    from lbscene.engine.profiles import profile_shape
+
+    return _rv(np.clip(profile_shape(lamp.profile)(theta), 0.0, None))
+
+
+def _emitters(ir, lighting: str) -> list[dict]:
+    """Lamps that are on, as LTC emitters (band intensity at θ = 0, W·sr⁻¹·nm⁻¹)."""
+    _, _, lamps_rotate = _platform_frame(ir)
+    grid = ir.grid
+    out = []
+    trans = np.ones(grid.count)
+    diffuser = None
+    if ir.diffuser is not None and "diffuser" in ir.effects:
+        diffuser = ir.diffuser
+        trans = grid.integrate(diffuser.transmittance.array_1nm)
+        if diffuser.scattering.get("type") == "lambertian":
+            trans = trans * (1.0 - float(diffuser.scattering.get("diffuse_fraction", 0.0)))
+    for lamp, level in ir.lamps_on(lighting):
+        emission = grid.integrate(ir.lamp_emission_1nm(lamp)) * level
+        below = diffuser is not None and lamp.position_mm[2] > diffuser.z_mm
+        if below:
+            emission = emission * trans
+        if lamp.kind == "tube":
+            kind, half_l, half_w = "tube", lamp.length_mm / 2, max(lamp.radius_mm, 0.5)
+        elif lamp.kind == "panel":
+            kind, half_l, half_w = "panel", lamp.length_mm / 2, lamp.width_mm / 2
+        else:
+            radius = lamp.radius_mm if lamp.radius_mm > 0 else POINT_LAMP_RADIUS_MM
+            # a sphere of radius r seen from anywhere: a facing square of equal area π r²
+            kind, half_l, half_w = "sphere", 0.0, radius * np.sqrt(np.pi) / 2
+        axis = np.asarray(lamp.axis, float)
+        aim = np.asarray(lamp.aim, float)
+        w_axis = np.cross(aim, axis)
+        w_axis = w_axis / np.linalg.norm(w_axis) if np.linalg.norm(w_axis) > 1e-9 else np.zeros(3)
+        out.append({
+            "id": lamp.id, "group": lamp.group, "kind": kind,
+            "centre_mm": _rv(lamp.position_mm), "axis": _rv(axis), "aim": _rv(aim),
+            "width_axis": _rv(w_axis), "half_length_mm": _r(half_l), "half_width_mm": _r(half_w),
+            "intensity_bands_W_sr_nm": _rv(emission),
+            "profile": _profile_samples(ir, lamp),
+            "through_diffuser": bool(below),
+            "rotates_with_platform": lamps_rotate,
+        })
+    return out
+
+
+def _surfaces(ir) -> dict[str, list[str]]:
+    """Split the IR's surfaces into meshes: static box faces, static meshes, platform-mounted."""
+    _, _, fixed = _platform_frame(ir)
+    box, meshes, platform = [], [], []
+    for s in ir.surfaces:
+        if s.role == "platform":
+            platform.append(s.id)
+        elif s.role == "mesh":
+            # meshes of booths whose luminaire turns with the platform are the luminaire's
+            # (the IR does not tag mounted meshes; see the runtime's documentation)
+            (platform if fixed else meshes).append(s.id)
+        else:
+            box.append(s.id)
+    return {"booth": box, "booth_meshes": meshes, "platform": platform}
+
+
+def shader_sources() -> dict[str, str]:
+    """Every shader file of the runtime: name → source."""
+    return {p.name: p.read_text() for p in sorted(SHADER_DIR.iterdir())
+            if p.suffix in (".vert", ".frag")}
+
+
+def _shader_digest() -> dict[str, str]:
+    return {name: hashlib.sha256(src.encode()).hexdigest()[:16]
+            for name, src in shader_sources().items()}
+
+
+# --------------------------------------------------------------------------- passes
+
+def _vertex_layout() -> list[dict]:
+    return [{"name": "a_position_mm", "components": 3}, {"name": "a_normal", "components": 3},
+            {"name": "a_uv", "components": 2}, {"name": "a_material", "components": 1}] + [
+        {"name": f"a_irradiance{k}", "components": 4} for k in range(4)]
+
+
+def _passes() -> list[dict]:
+    surface_uniforms = {"u_view_proj": "view.view_proj", "u_model": "view.identity"}
+    booth_draw = {
+        "program": {"vertex": "surface.vert", "fragment": "booth.frag"},
+        "uniforms": dict(surface_uniforms),
+        "textures": {"u_materials": "materials"},
+    }
+    sample_uniforms = dict(surface_uniforms)
+    sample_uniforms.update({
+        "u_eye_mm": "view.eye_mm",
+        "u_illumination_mm": "view.illumination_centre_mm",
+        "u_sample_geometry_count": "sample.geometry_count",
+        "u_emitter_count": "view.emitter_count",
+        "u_ltc_size": "ltc.size",
+        "u_roughness": "sample.roughness",
+        "u_specular_weight": "sample.specular_weight",
+        "u_f0": "sample.f0",
+    })
+    return [
+        {"name": "surfaces", "kind": "raster",
+         "doc": "Booth and sample from the observer: spectral radiance in 4 RGBA32F blocks. "
+                "Diffuse: band reflectance × per-vertex band irradiance / π; sample: "
+                "reflectance interpolated per pixel between measured geometries by aspecular "
+                "angle, plus GGX highlights of area and line lights by LTC.",
+         "outputs": {"color": list(SPECTRAL_TARGETS), "depth": "depth"},
+         "clear": {"color": [0.0, 0.0, 0.0, 0.0], "depth": 1.0},
+         "draws": [
+             dict(booth_draw, name="booth", mesh="booth", cull_back_faces=True),
+             dict(booth_draw, name="booth_meshes", mesh="booth_meshes", cull_back_faces=False),
+             dict(booth_draw, name="platform", mesh="platform", cull_back_faces=False),
+             {"name": "sample", "mesh": "sample", "cull_back_faces": False,
+              "program": {"vertex": "surface.vert", "fragment": "sample.frag"},
+              "uniforms": sample_uniforms,
+              "textures": {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
+                           "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}},
+         ]},
+        {"name": "spectral_to_xyz", "kind": "fullscreen",
+         "doc": "16 band radiances → absolute XYZ (Y in cd/m²) with band weights for the light "
+                "at the sample.",
+         "program": {"vertex": "fullscreen.vert", "fragment": "spectral_to_xyz.frag"},
+         "textures": {f"u_radiance{k}": SPECTRAL_TARGETS[k] for k in range(4)},
+         "uniforms": {"u_xyz_weights": "view.xyz_weights"},
+         "outputs": {"color": ["xyz"]}},
+        {"name": "display", "kind": "fullscreen",
+         "doc": "Absolute XYZ → display drive values with the display model (exposure, black "
+                "and ambient flare, primaries, out-of-gamut mapping, tone response); alpha = "
+                "out-of-gamut excess.",
+         "program": {"vertex": "fullscreen.vert", "fragment": "display.frag"},
+         "textures": {"u_xyz": "xyz", "u_tone_lut": "tone_lut"},
+         "defines": {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"},
+         "uniforms": {"u_exposure": "display.exposure", "u_xyz_offset": "display.xyz_offset",
+                      "u_xyz_to_rgb": "display.xyz_to_rgb",
+                      "u_tone_params": "display.tone_params", "u_tone_lut_size": "display.tone_lut_size",
+                      "u_inv_y_span": "display.inv_y_span"},
+         "outputs": {"color": ["display_drive"]}},
+        {"name": "dither", "kind": "fullscreen",
+         "doc": "Blue-noise spatial dithering, then quantisation to 8 bits per channel.",
+         "program": {"vertex": "fullscreen.vert", "fragment": "dither.frag"},
+         "textures": {"u_drive": "display_drive", "u_noise": "blue_noise"},
+         "uniforms": {"u_noise_size": "dither.noise_size", "u_noise_offsets": "dither.channel_offsets",
+                      "u_dither_amplitude": "dither.amplitude"},
+         "outputs": {"color": ["display_rgba8"]}},
+        {"name": "resolve", "kind": "fullscreen",
+         "doc": "spectral_to_xyz, display and dither fused into one pass (the realtime schedule): "
+                "the same arithmetic without the intermediate XYZ and drive images.",
+         "program": {"vertex": "fullscreen.vert", "fragment": "resolve.frag"},
+         "textures": dict({f"u_radiance{k}": SPECTRAL_TARGETS[k] for k in range(4)},
+                          u_tone_lut="tone_lut", u_noise="blue_noise"),
+         "defines": {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"},
+         "uniforms": {"u_xyz_weights": "view.xyz_weights", "u_exposure": "display.exposure",
+                      "u_xyz_offset": "display.xyz_offset", "u_xyz_to_rgb": "display.xyz_to_rgb",
+                      "u_tone_params": "display.tone_params",
+                      "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
+                      "u_noise_size": "dither.noise_size",
+                      "u_noise_offsets": "dither.channel_offsets", "u_dither_amplitude": "dither.amplitude"},
+         "outputs": {"color": ["display_rgba8"]}},
+    ]
+
+
+#: Which passes run, in order.  ``analysis`` keeps every intermediate image (float XYZ,
+#: drive values with the out-of-gamut excess); ``realtime`` fuses the full-screen stages.
+SCHEDULES = {"analysis": ["surfaces", "spectral_to_xyz", "display", "dither"],
+             "realtime": ["surfaces", "resolve"]}
+
+
+_VALUES_DOC = {
+    "view.view_proj": "mat4, booth millimetres → clip space (camera of the view / config)",
+    "view.identity": "mat4 identity (geometry is placed per view on the CPU)",
+    "view.eye_mm": "vec3, camera position (mm)",
+    "view.illumination_centre_mm": "vec3, centre of the light defining the geometry, rotated",
+    "view.emitter_count": "int, rows of the emitters texture",
+    "view.xyz_weights": "mat4x3[4], XYZ (Y in cd/m²) per unit band radiance: 683·∫_band E·cmf dλ / E_band "
+                        "for the spectral irradiance E at the sample (colour module's band weights when "
+                        "available); bands 1 and 16 also take the light below 390 / above 710 nm",
+    "sample.geometry_count": "int, measured geometries (columns of sample_reflectance)",
+    "sample.roughness": "float, GGX roughness r (α = r²) of the clear coat",
+    "sample.specular_weight": "float, gloss_GU / 100 (0: matte, no highlights)",
+    "sample.f0": "float, Fresnel reflectance at normal incidence of the coat (n = 1.567: 0.0492)",
+    "ltc.size": "int, side of the LTC tables",
+    "display.exposure": "float, absolute XYZ → display XYZ scale (cd/m² per cd/m²)",
+    "display.xyz_offset": "vec3, XYZ subtracted before the matrix: display black + reflected ambient",
+    "display.xyz_to_rgb": "mat3, display XYZ → linear channel values (1 = channel peak)",
+    "display.tone_kind": "int, 0 sRGB piecewise, 1 GOG (gain, offset, gamma), 2 LUT (a #define)",
+    "display.tone_params": "vec4[3] per channel (gain, offset, gamma, unused) for GOG",
+    "display.tone_lut_size": "int, entries of tone_lut (inverse tone response, linear → drive)",
+    "display.gamut_mapping": "int, 0 clip, 1 chroma (a #define)",
+    "display.inv_y_span": "float, 1 / (white − black luminance) of the display, for the chroma mapping",
+    "dither.noise_size": "int, side of the blue-noise mask (a power of two)",
+    "dither.channel_offsets": "ivec4, mask offsets (x, y) of channels G and B: (s/2, s/3, s/3, s/2)",
+    "dither.amplitude": "float, 1: dithering on, 0: plain rounding",
+}
+
+
+def build_render_graph(ir, lighting: str) -> dict[str, Any]:
+    """The render graph (a JSON-ready dict) of ``ir`` under ``lighting``."""
+    if lighting not in ir.lighting:
+        raise KeyError(f"unknown lighting {lighting!r}")
+    from lbscene.engine.spectral import band_labels
+
+    grid = ir.grid
+    materials = []
+    for i, (mid, m) in enumerate(sorted(ir.materials.items())):
+        bands, source = _material_bands(ir, m, lighting)
+        materials.append({"id": mid, "index": i, "type": m.type, "gloss_GU": _r(m.gloss_GU),
+                          "roughness": _r(m.roughness), "reflectance_bands": bands,
+                          "band_source": source})
+    mat_index = {m["id"]: m["index"] for m in materials}
+    surfaces = [{"id": s.id, "role": s.role, "material_index": mat_index[s.material],
+                 "triangles": len(s.triangles)} for s in ir.surfaces]
+    split = _surfaces(ir)
+    emitters = _emitters(ir, lighting)
+    origin, axis, fixed = _platform_frame(ir)
+    n_blocks = (grid.count + 3) // 4
+    textures: dict[str, dict] = {}
+    for k in range(n_blocks):
+        textures[SPECTRAL_TARGETS[k]] = {"format": "rgba32f", "size": "viewport", "usage": "target",
+                                         "bands": list(range(4 * k, min(4 * k + 4, grid.count)))}
+    textures.update({
+        "depth": {"format": "depth24", "size": "viewport", "usage": "depth"},
+        "xyz": {"format": "rgba32f", "size": "viewport", "usage": "target",
+                "units": "XYZ with Y in cd·m⁻² (absolute), alpha 1"},
+        "display_drive": {"format": "rgba32f", "size": "viewport", "usage": "target",
+                          "units": "display drive values 0..1; alpha: out-of-gamut excess"},
+        "display_rgba8": {"format": "rgba8", "size": "viewport", "usage": "target"},
+        "materials": {"format": "rgba32f", "size": [n_blocks, len(materials)], "usage": "data",
+                      "source": "scene.materials", "layout": "row = material index, texel k = bands 4k..4k+3"},
+        "emitters": {"format": "rgba32f", "size": [EMITTER_TEXELS, max(len(emitters), 1)], "usage": "data",
+                     "source": "view.emitters",
+                     "layout": "row per emitter: 0 centre_mm+kind(0 sphere,1 tube,2 panel), 1 axis+half_length_mm, "
+                               "2 aim+half_width_mm, 3 width_axis+0, 4..7 intensity bands (W/sr/nm), "
+                               "8..23 profile f(θ) at 64 angles 0..180°"},
+        "ltc_minv": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.minv"},
+        "ltc_mag": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.mag"},
+        "sample_reflectance": {"format": "rgba32f", "size": ["sample.geometry_count", n_blocks + 1],
+                               "usage": "data", "source": "parameter:sample",
+                               "layout": "column per measured geometry sorted by aspecular angle; rows "
+                                         "0..3 band blocks (projected for the light at the sample), "
+                                         "row 4 x = aspecular angle (deg)"},
+        "tone_lut": {"format": "rgba32f", "size": ["display.tone_lut_size", 1], "usage": "data",
+                     "source": "parameter:display"},
+        "blue_noise": {"format": "rgba32f", "size": ["dither.noise_size", "dither.noise_size"],
+                       "usage": "data", "source": "colour.dither (builtin fallback)"},
+    })
+    attrs = _vertex_layout()
+    meshes = {
+        "booth": {"surfaces": split["booth"], "attributes": attrs, "placement": "static",
+                  "tessellation": "grid, cells <= 1/48 of the booth's largest dimension"},
+        "booth_meshes": {"surfaces": split["booth_meshes"], "attributes": attrs, "placement": "static",
+                         "tessellation": "triangles split to edges <= 1/24 of the largest dimension"},
+        "platform": {"surfaces": split["platform"], "attributes": attrs, "placement": "platform",
+                     "tessellation": "as booth / booth_meshes"},
+        "sample": {"source": "parameter:sample", "attributes": attrs, "placement": "platform",
+                   "tessellation": "16 × 16 grid over the sample's size_mm"},
+    }
+    irradiance = {
+        "analytic": "lbscene.engine.forward.ForwardModel(ir, lighting).spectral_irradiance_bands at each "
+                    "vertex (lamps with every enabled effect; for views that turn the luminaire with "
+                    "the platform, evaluated in the platform's frame)",
+        "baked": "bake products of this lighting: environment map at the sample per geometry "
+                 "(cosine-weighted → irradiance of the sample), floor irradiance map (floor vertices); "
+                 "other vertices analytic",
+    }
+    graph = {
+        "format": GRAPH_FORMAT, "version": GRAPH_VERSION,
+        "booth": ir.booth_name, "ir_hash": ir.content_hash, "ir": "../../scene.ir.json",
+        "lighting": lighting,
+        "bands": dict(grid.to_json(), blocks=n_blocks, labels=band_labels(grid)),
+        "requires": {"glsl": "300 es", "max_draw_buffers": n_blocks,
+                     "webgl2_extensions": ["EXT_color_buffer_float"],
+                     "note": "float textures are read with texelFetch only (no float filtering)"},
+        "units": {"length": "mm", "spectral_radiance": "W·sr⁻¹·m⁻²·nm⁻¹ (band mean)",
+                  "spectral_irradiance": "W·m⁻²·nm⁻¹ (band mean)", "intensity": "W·sr⁻¹·nm⁻¹",
+                  "xyz": "Y in cd·m⁻²"},
+        "parameters": {
+            "view": {"values": [v["name"] for v in _views(ir, lighting)]},
+            "sample": {"kind": "sample", "doc": "reflectance per geometry, gloss, size"},
+            "display": {"kind": "display"},
+            "camera": {"default": "observer looking at the sample centre", "vertical_fov_deg": 30.0},
+            "viewport": {"min_px": 16, "max_px": 8192},
+            "diffuse": {"values": ["auto", "baked", "analytic"], "default": "auto"},
+            "exposure": {"values": ["relative_white", "absolute"], "default": "relative_white"},
+            "dither": {"default": True},
+        },
+        "scene": {
+            "materials": materials,
+            "surfaces": surfaces,
+            "emitters": emitters,
+            "sample_placement": {"centre_mm": _rv(ir.sample_position_mm), "normal": [0.0, 0.0, 1.0],
+                                 "u_axis": [1.0, 0.0, 0.0], "lift_mm": SAMPLE_LIFT_MM},
+            "platform": {"present": ir.platform is not None, "origin_mm": _rv(origin), "axis": _rv(axis),
+                         "luminaire_turns_with_platform": fixed},
+        },
+        "views": _views(ir, lighting),
+        "resources": {"textures": textures, "meshes": meshes, "irradiance": irradiance},
+        "passes": _passes(),
+        "schedules": SCHEDULES,
+        "default_schedule": "realtime",
+        "values": _VALUES_DOC,
+        "outputs": {"image": "display_rgba8", "xyz": "xyz", "spectral": list(SPECTRAL_TARGETS[:n_blocks])},
+        "shaders": _shader_digest(),
+    }
+    return json.loads(json.dumps(graph))  # plain JSON types only
+
+
+def write_build_products(ir, lighting_name: str, folder: Path) -> list[Path]:
+    """``lbscene build`` hook: write ``render_graph.json`` for one lighting configuration."""
+    from lbscene.engine.ir import canonical_json
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    graph = build_render_graph(ir, lighting_name)
+    path = folder / GRAPH_FILENAME
+    text = json.dumps(json.loads(canonical_json(graph)), indent=1, sort_keys=True, ensure_ascii=False)
+    path.write_text(text + "\n")
+    return [path]
+
+
+def load_render_graph(path: Path) -> dict[str, Any]:
+    """Read a render graph written by :func:`write_build_products` (checks format/version)."""
+    d = json.loads(Path(path).read_text())
+    if d.get("format") != GRAPH_FORMAT or d.get("version") != GRAPH_VERSION:
+        raise ValueError(f"{path}: not a {GRAPH_FORMAT} version {GRAPH_VERSION} file")
+    return d

@@ -1,0 +1,351 @@
+"""
+Rendering frames: a render graph + scene inputs + the moderngl executor.
+
+:class:`Renderer` is what the CLI, the benchmark and the tests use::
+
+    r = Renderer(ir, build_render_graph(ir, "A"), SampleSpec.flat(refl_1nm), srgb_display())
+    frame = r.render("45as45", (1024, 768), want_xyz=True)
+    frame.rgba8          # (H, W, 4) uint8, top row first (display-encoded, dithered)
+    frame.xyz            # (H, W, 3) float32, absolute XYZ (Y in cd/m²)
+
+:func:`prepare_from_config` resolves a render configuration (booth, lighting,
+geometry, sample, display, bake) into a :class:`RenderJob` with located
+errors for user mistakes.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .executor import GraphExecutor, PassTiming, create_context
+from .scene import CameraSpec, SampleSpec, SceneBuilder
+
+__all__ = [
+    "Frame",
+    "Renderer",
+    "RenderJob",
+    "prepare_from_config",
+    "parse_size",
+    "MIN_SIZE_PX",
+    "MAX_SIZE_PX",
+    "contact_sheet",
+    "write_png",
+    "write_xyz",
+]
+
+MIN_SIZE_PX = 16
+MAX_SIZE_PX = 8192
+
+
+@dataclass
+class Frame:
+    view: str
+    size: tuple[int, int]
+    rgba8: np.ndarray
+    xyz: np.ndarray | None = None
+    out_of_gamut: dict | None = None
+    info: dict = field(default_factory=dict)
+    timings: list[PassTiming] = field(default_factory=list)
+
+
+class Renderer:
+    """A booth's render graph on one GL context, for one sample and display."""
+
+    def __init__(self, ir, graph: dict, sample: SampleSpec, display, *, bake=None,
+                 diffuse: str = "analytic", exposure: str = "relative_white", white_fraction: float = 1.0,
+                 dither: bool = True, camera: CameraSpec | None = None, ctx=None,
+                 device_index: int | None = None):
+        self.scene = SceneBuilder(ir, graph, sample, display, bake=bake, diffuse=diffuse, exposure=exposure,
+                                  white_fraction=white_fraction, dither=dither, camera=camera)
+        self.graph = graph
+        self.ctx = ctx if ctx is not None else create_context(device_index)
+        self._own_ctx = ctx is None
+        self.executor: GraphExecutor | None = None
+        self._current_view: str | None = None
+
+    @property
+    def gl_renderer(self) -> str:
+        return str(self.ctx.info.get("GL_RENDERER", "?"))
+
+    def prepare(self, view: str, size: tuple[int, int]) -> None:
+        """Upload everything for a view and viewport (cheap when nothing changed)."""
+        if self.executor is None:
+            self.executor = GraphExecutor(self.ctx, self.graph, size)
+            for name, arr in self.scene.static_textures().items():
+                self.executor.set_texture(name, arr)
+        ex = self.executor
+        ex.resize(size)
+        vi = self.scene.view(view)
+        if self._current_view != view:
+            for name, (v, idx) in vi.meshes.items():
+                ex.set_mesh(name, v, idx)
+            for name, arr in vi.textures.items():
+                ex.set_texture(name, arr)
+            self._current_view = view
+        ex.values.update({k: v for k, v in vi.values.items() if v is not None})
+        cam = self.scene.camera_values(view, size)
+        ex.values.update({k: v for k, v in cam.items() if not k.startswith("_")})
+
+    def render(self, view: str | None = None, size: tuple[int, int] = (1024, 768), *,
+               want_xyz: bool = False, want_gamut: bool = False, timings: bool = False,
+               schedule: str | None = None) -> Frame:
+        """Render one frame.  The ``realtime`` schedule unless XYZ or gamut data are wanted
+        (then ``analysis``, which keeps those images), or as ``schedule`` says."""
+        view = view or self.scene.view_names[0]
+        self.prepare(view, size)
+        if schedule is None:
+            schedule = "analysis" if (want_xyz or want_gamut) else "realtime"
+        t: list[PassTiming] | None = [] if timings else None
+        self.executor.run(t, schedule)
+        frame = Frame(view=view, size=tuple(size), rgba8=self.executor.read("display_rgba8"),
+                      info=dict(self.scene.view(view).info), timings=t or [])
+        if want_xyz:
+            frame.xyz = self.executor.read("xyz")[..., :3]
+        if want_gamut:
+            ex = self.executor.read("display_drive")[..., 3]
+            n = int((ex > 1e-6).sum())
+            frame.out_of_gamut = {"pixels": n, "fraction": n / ex.size, "max_excess": float(ex.max()),
+                                  "mapping": self.scene.display.gamut_mapping_name}
+        return frame
+
+    def sample_pixel(self, view: str, size: tuple[int, int]) -> tuple[float, float]:
+        """Pixel coordinates (x right, y down) of the sample centre in a frame."""
+        vi = self.scene.view(view)
+        vp = self.scene.camera_values(view, size)["_view_proj"]
+        c = vp @ np.r_[vi.sample_centre_mm, 1.0]
+        ndc = c[:2] / c[3]
+        w, h = size
+        return (ndc[0] + 1) / 2 * w, (1 - ndc[1]) / 2 * h
+
+    def close(self) -> None:
+        if self.executor is not None:
+            self.executor.release()
+            self.executor = None
+        if self._own_ctx:
+            self.ctx.release()
+
+
+# --------------------------------------------------------------------------- output files
+
+def write_png(path: Path, rgba8: np.ndarray, text: dict[str, str] | None = None) -> None:
+    """Write an RGB PNG atomically (temporary sibling, then ``os.replace``)."""
+    import io
+
+    from PIL import Image, PngImagePlugin
+
+    from lbscene.engine.build import write_atomic
+
+    info = PngImagePlugin.PngInfo()
+    for k, v in (text or {}).items():
+        info.add_text(k, str(v))
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgba8[..., :3])).save(buf, format="PNG", pnginfo=info)
+    write_atomic(Path(path), buf.getvalue())
+
+
+def write_xyz(path: Path, xyz: np.ndarray) -> None:
+    """Write float XYZ (H, W, 3) as ``.npy`` or ``.exr`` (channels X, Y, Z), atomically."""
+    import tempfile
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    suffix = path.suffix.lower()
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        if suffix == ".npy":
+            np.save(tmp, np.asarray(xyz, np.float32))
+        elif suffix == ".exr":
+            from lbscene.bakers.products import write_exr
+
+            write_exr(Path(tmp), np.asarray(xyz, np.float32), ["X", "Y", "Z"],
+                      {"lbscene:units": "XYZ, Y in cd/m2 (absolute)"})
+        else:
+            raise ValueError(f"unsupported XYZ file type {suffix!r} (use .npy or .exr)")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def contact_sheet(frames: list[Frame], columns: int = 3, label: bool = True) -> np.ndarray:
+    """Tile frames (same size) into one RGBA8 image with their view names."""
+    from PIL import Image, ImageDraw
+
+    w, h = frames[0].size
+    rows = (len(frames) + columns - 1) // columns
+    sheet = Image.new("RGBA", (columns * w, rows * h), (0, 0, 0, 255))
+    for i, f in enumerate(frames):
+        tile = Image.fromarray(f.rgba8)
+        if label:
+            d = ImageDraw.Draw(tile)
+            d.rectangle([0, 0, 8 + 7 * len(f.view), 16], fill=(0, 0, 0, 255))
+            d.text((4, 3), f.view, fill=(255, 255, 255, 255))
+        sheet.paste(tile, ((i % columns) * w, (i // columns) * h))
+    return np.asarray(sheet)
+
+
+# --------------------------------------------------------------------------- configuration
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``'1024x768'`` → (1024, 768); raises ValueError with a readable message."""
+    parts = text.lower().replace("×", "x").split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"{text!r} is not a size like 1024x768")
+    w, h = int(parts[0]), int(parts[1])
+    for v in (w, h):
+        if not MIN_SIZE_PX <= v <= MAX_SIZE_PX:
+            raise ValueError(f"{w}x{h}: each side must be {MIN_SIZE_PX}..{MAX_SIZE_PX} px")
+    return w, h
+
+
+@dataclass
+class RenderJob:
+    """A render configuration resolved into inputs of :class:`Renderer`."""
+
+    config_path: Path
+    ir: Any
+    graph: dict
+    sample: SampleSpec
+    display: Any
+    views: list[str]
+    size: tuple[int, int]
+    png: Path
+    xyz: Path | None
+    diffuse: str
+    bake: Any = None
+    bake_note: str = ""
+    exposure: str = "relative_white"
+    white_fraction: float = 1.0
+    dither: bool = True
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    notes: list[str] = field(default_factory=list)
+
+    def renderer(self, ctx=None, device_index: int | None = None) -> Renderer:
+        return Renderer(self.ir, self.graph, self.sample, self.display, bake=self.bake,
+                        diffuse=self.diffuse, exposure=self.exposure, white_fraction=self.white_fraction,
+                        dither=self.dither, camera=self.camera, ctx=ctx, device_index=device_index)
+
+
+def _err(code, message, loc=None, **kw):
+    from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
+
+    return LbsceneUserError(Diagnostic(code, message, loc, **kw))
+
+
+def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_geometries: bool = False,
+                        size: tuple[int, int] | None = None, png: Path | None = None,
+                        xyz: Path | None = None, diffuse: str | None = None,
+                        bake_dirs: list[Path] | None = None, allowed_dirs=()) -> RenderJob:
+    """Load and check a render configuration; everything a user can get wrong raises
+    :class:`~lbscene.engine.diagnostics.LbsceneUserError` with a location."""
+    from lbscene.engine.compile import compile_booth, find_booth_file
+    from lbscene.engine.load import display_path, load_document
+    from lbscene.schemas.render_config import RenderConfig
+    from lbscene.schemas.sample import Sample
+
+    from .bake import find_bakes, load_bake
+    from .colour_bridge import display_uniforms, srgb_display
+    from .graph import build_render_graph, view_names
+
+    config_path = Path(config_path)
+    doc = load_document(config_path, RenderConfig, allowed_dirs=allowed_dirs)
+    cfg = doc.model
+    base = config_path.resolve().parent
+    booth_path = (base / cfg.booth) if not Path(cfg.booth).is_absolute() else Path(cfg.booth)
+    if not booth_path.exists():
+        raise _err("LB200", f"booth {cfg.booth!r} does not exist", doc.locate("booth"),
+                   value=str(booth_path), expected="a booth folder or booth.yaml")
+    ir = compile_booth(find_booth_file(booth_path))
+    if cfg.lighting not in ir.lighting:
+        raise _err("LB202", f"booth {ir.booth_name!r} has no lighting configuration {cfg.lighting!r}",
+                   doc.locate("lighting"), value=repr(cfg.lighting), expected=f"one of {', '.join(ir.lighting)}")
+    graph = build_render_graph(ir, cfg.lighting)
+    names = view_names(ir)
+    booth_geoms = [g.name for g in ir.geometries]
+    if all_geometries:
+        views = names
+    else:
+        want = geometry or cfg.geometry
+        if want is None:
+            views = [names[0]]
+        elif want not in booth_geoms:
+            loc = None if geometry else doc.locate("geometry")
+            expected = f"one of {', '.join(booth_geoms)}" if booth_geoms else "no geometry (this booth has none)"
+            raise _err("LB303", f"unknown viewing geometry {want!r} for booth {ir.booth_name!r}", loc,
+                       value=repr(want), expected=expected)
+        else:
+            views = [want]
+
+    sdoc = load_document(doc.resolve(cfg.sample), Sample, allowed_dirs=allowed_dirs)
+    sample = SampleSpec.from_document(sdoc)
+
+    notes: list[str] = []
+    if cfg.display.strip().lower() in ("builtin:srgb", "srgb"):
+        display = srgb_display()
+    else:
+        dpath = (base / cfg.display) if not Path(cfg.display).is_absolute() else Path(cfg.display)
+        if not dpath.is_file():
+            raise _err("LB200", f"display file {cfg.display!r} does not exist", doc.locate("display"),
+                       value=str(dpath), expected="a display document (displays/*.yaml) or 'builtin:srgb'")
+        display = display_uniforms(dpath)
+        if display.source.startswith("builtin"):
+            notes.append("display model not available in this build: rendering for the sRGB reference display")
+
+    mode = diffuse or cfg.diffuse
+    searched = list(bake_dirs or [])
+    if cfg.bake:
+        searched.insert(0, base / cfg.bake)
+    booth_dir = find_booth_file(booth_path).resolve().parent
+    searched += [Path.cwd() / "build" / booth_dir.name, booth_dir / "build"]
+    bake = None
+    bake_note = ""
+    if mode in ("auto", "baked"):
+        folder, reason = find_bakes(searched, ir, cfg.lighting)
+        if folder is not None:
+            fixed = graph["scene"]["platform"]["luminaire_turns_with_platform"]
+            bake = load_bake(folder, lamps_turn_with_platform=fixed, views=len(names))
+            missing = [v for v in views if not bake.has_view(v)]
+            if missing:
+                reason = f"the bake in {folder} has no environment map for {', '.join(missing)}"
+                bake = None
+        if bake is None:
+            where = ", ".join(display_path(p) for p in searched)
+            bake_note = f"{reason} (looked in {where})"
+            if mode == "baked":
+                from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
+
+                raise LbsceneUserError(Diagnostic(
+                    "LB601", f"the configuration asks for baked lighting but {bake_note}",
+                    doc.locate("diffuse"), value=f"diffuse: {mode}",
+                    expected=f"bake products of lighting {cfg.lighting!r}",
+                    hint=f"run `lbscene build {display_path(booth_dir)}` and `lbscene bake "
+                         f"build/{booth_dir.name} --lighting {cfg.lighting}`, or pass --bake to "
+                         f"run the bake now, or set `diffuse: analytic`"))
+            mode = "analytic"
+        else:
+            mode = "baked"
+
+    out_png = png or (base / cfg.output.png)
+    out_xyz = xyz or ((base / cfg.output.xyz) if cfg.output.xyz else None)
+    if out_xyz is not None and Path(out_xyz).suffix.lower() not in (".npy", ".exr"):
+        raise _err("LB104", f"XYZ output {str(out_xyz)!r} must end in .npy or .exr",
+                   None if xyz else doc.locate("output", "xyz"), value=str(out_xyz),
+                   expected="a .npy or .exr file name")
+    cam = cfg.camera
+    camera = CameraSpec(position_mm=cam.position_mm if cam.type == "free" else None,
+                        look_at_mm=cam.look_at_mm, vertical_fov_deg=cam.vertical_fov_deg)
+    if cam.type == "free" and cam.position_mm is None:
+        raise _err("LB102", "a free camera needs position_mm", doc.locate("camera"),
+                   expected="camera.position_mm")
+    return RenderJob(config_path=config_path, ir=ir, graph=graph, sample=sample, display=display,
+                     views=views, size=size or (cfg.output.width_px, cfg.output.height_px),
+                     png=Path(out_png), xyz=Path(out_xyz) if out_xyz else None, diffuse=mode,
+                     bake=bake, bake_note=bake_note, exposure=cfg.exposure.mode,
+                     white_fraction=cfg.exposure.white_fraction, dither=cfg.dither, camera=camera,
+                     notes=notes)

@@ -1,0 +1,653 @@
+"""
+Render-time inputs of a render graph: meshes with per-vertex band irradiance,
+data textures and the values its bindings name.
+
+:class:`SceneBuilder` turns the graph (plain data), the scene IR, a sample, a
+display and (optionally) bake products into :class:`ViewInputs`, per view,
+cached.  Nothing here touches OpenGL: the executor uploads what it gets.
+
+Coordinates: booth millimetres.  Geometry is placed per view on the CPU
+(platform-mounted parts rotated about the platform axis), so the vertex
+shader's model matrix is the identity.
+
+Irradiance at vertices (``diffuse='analytic'``) comes from the analytic forward
+model (:class:`lbscene.engine.forward.ForwardModel`: every enabled effect of
+the booth).  When the luminaire turns with the platform, the light transport
+is evaluated in the platform's frame (fixed parts transformed by the inverse
+rotation): exact for the direct light of platform-mounted lamps, approximate
+for inter-reflection between fixed walls.  With ``diffuse='baked'`` the sample's
+irradiance comes from the bake's environment map of the view (cosine-weighted)
+and floor vertices from the floor irradiance map; the rest stays analytic.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .graph import EMITTER_TEXELS, PROFILE_SAMPLES, rotation_matrix
+
+__all__ = [
+    "VERTEX_FLOATS",
+    "SampleSpec",
+    "CameraSpec",
+    "ViewInputs",
+    "SceneBuilder",
+    "look_at",
+    "perspective",
+    "tessellate_surface",
+]
+
+#: position 3, normal 3, uv 2, material 1, irradiance 16
+VERTEX_FLOATS = 25
+#: Fresnel reflectance at normal incidence of a clear coat with n = 1.567 (the gloss
+#: standard's black glass): ((n − 1)/(n + 1))².
+COAT_F0 = ((1.567 - 1.0) / (1.567 + 1.0)) ** 2
+SAMPLE_GRID = 16
+
+
+# --------------------------------------------------------------------------- inputs
+
+@dataclass
+class SampleSpec:
+    """The sample as the runtime needs it.
+
+    ``geometries``: ``(aspecular_deg, label, reflectance_1nm)``; one entry (any
+    angle) for a geometry-independent reflectance.
+    """
+
+    name: str
+    geometries: list[tuple[float, str, np.ndarray]]
+    size_mm: tuple[float, float] = (100.0, 85.0)
+    gloss_GU: float = 0.0
+    roughness: float = 0.1
+
+    @classmethod
+    def flat(cls, reflectance_1nm, name: str = "flat", size_mm=(100.0, 85.0), gloss_GU: float = 0.0,
+             roughness: float = 0.1) -> "SampleSpec":
+        return cls(name, [(0.0, "all", np.asarray(reflectance_1nm, float))], tuple(size_mm),
+                   gloss_GU, roughness)
+
+    @classmethod
+    def from_document(cls, doc) -> "SampleSpec":
+        """From a loaded :class:`lbscene.schemas.sample.Sample` document."""
+        from lbscene.engine.spectra import evaluate_spectrum
+        from lbscene.schemas.booth import parse_geometry_name
+
+        m = doc.model
+        geoms = []
+        for g in m.by_geometry:
+            _, asp = parse_geometry_name(g.geometry)
+            geoms.append((asp, g.geometry, evaluate_spectrum(g.reflectance, doc.resolve, "reflectance",
+                                                             display=f"{m.name} {g.geometry}")))
+        if not geoms:
+            geoms.append((0.0, "all", evaluate_spectrum(m.reflectance, doc.resolve, "reflectance",
+                                                         display=m.name)))
+        geoms.sort(key=lambda g: g[0])
+        return cls(m.name, geoms, tuple(m.size_mm), m.gloss_GU, m.roughness)
+
+    def digest(self) -> str:
+        h = hashlib.sha256(repr((self.name, self.size_mm, self.gloss_GU, self.roughness)).encode())
+        for a, label, r in self.geometries:
+            h.update(f"{a}:{label}".encode())
+            h.update(np.asarray(r, float).tobytes())
+        return h.hexdigest()[:16]
+
+
+@dataclass
+class CameraSpec:
+    """``position_mm``/``look_at_mm`` None: the view's observer and the sample centre."""
+
+    position_mm: tuple[float, float, float] | None = None
+    look_at_mm: tuple[float, float, float] | None = None
+    vertical_fov_deg: float = 30.0
+
+
+@dataclass
+class ViewInputs:
+    """Everything one view needs besides the static data."""
+
+    name: str
+    meshes: dict[str, tuple[np.ndarray, np.ndarray]]
+    textures: dict[str, np.ndarray]
+    values: dict[str, Any]
+    sample_irradiance_1nm: np.ndarray
+    sample_centre_mm: np.ndarray
+    sample_normal: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------- camera
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """View matrix (4×4, column vectors) of a camera at ``eye`` looking at ``target``."""
+    eye = np.asarray(eye, float)
+    f = np.asarray(target, float) - eye
+    f /= np.linalg.norm(f)
+    up = np.asarray(up, float)
+    if abs(f @ up) > 0.999:
+        up = np.array([0.0, 1.0, 0.0])
+    s = np.cross(f, up)
+    s /= np.linalg.norm(s)
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def perspective(fovy_deg: float, aspect: float, near: float, far: float) -> np.ndarray:
+    """OpenGL perspective projection (4×4)."""
+    f = 1.0 / np.tan(np.radians(fovy_deg) / 2)
+    m = np.zeros((4, 4))
+    m[0, 0] = f / aspect
+    m[1, 1] = f
+    m[2, 2] = (far + near) / (near - far)
+    m[2, 3] = 2 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+def _gl(m: np.ndarray) -> np.ndarray:
+    """Column-major float32 for glUniformMatrix*."""
+    return np.ascontiguousarray(np.asarray(m, float).T, dtype=np.float32).ravel()
+
+
+# --------------------------------------------------------------------------- tessellation
+
+def _grid_quad(q: np.ndarray, nu: int, nv: int):
+    s = np.linspace(0.0, 1.0, nu + 1)
+    t = np.linspace(0.0, 1.0, nv + 1)
+    S, T = np.meshgrid(s, t, indexing="ij")
+    S, T = S.ravel()[:, None], T.ravel()[:, None]
+    p = (1 - S) * (1 - T) * q[0] + S * (1 - T) * q[1] + S * T * q[2] + (1 - S) * T * q[3]
+    uv = np.c_[S, T]
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+    tris = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 3)
+    return p, uv, tris
+
+
+def _split_long(v: np.ndarray, max_edge: float, max_levels: int = 4) -> np.ndarray:
+    """Triangles (k, 3, 3) split 1→4 until every edge is ≤ max_edge (or max_levels)."""
+    out = [v]
+    for _ in range(max_levels):
+        cur = out[-1]
+        e = np.max(np.linalg.norm(cur - np.roll(cur, 1, axis=1), axis=2), axis=1)
+        big = e > max_edge
+        if not big.any():
+            break
+        t = cur[big]
+        m01, m12, m20 = (t[:, 0] + t[:, 1]) / 2, (t[:, 1] + t[:, 2]) / 2, (t[:, 2] + t[:, 0]) / 2
+        new = np.concatenate([np.stack([t[:, 0], m01, m20], 1), np.stack([m01, t[:, 1], m12], 1),
+                              np.stack([m20, m12, t[:, 2]], 1), np.stack([m01, m12, m20], 1)])
+        out[-1] = np.concatenate([cur[~big], new])
+    return out[-1]
+
+
+def tessellate_surface(surface, cell_mm: float):
+    """Positions (n, 3), normals (n, 3), uv (n, 2), triangles (m, 3) of an IR surface.
+
+    A quad (4 vertices, two triangles) becomes a grid of cells ≤ ``cell_mm``; other
+    meshes are flat-shaded (face normals) with long triangles split.
+    """
+    v = surface.vertex_array
+    t = surface.triangle_array
+    if len(v) == 4 and t.tolist() == [[0, 1, 2], [0, 2, 3]]:
+        nu = max(1, int(np.ceil(np.linalg.norm(v[1] - v[0]) / cell_mm)))
+        nv = max(1, int(np.ceil(np.linalg.norm(v[3] - v[0]) / cell_mm)))
+        p, uv, tris = _grid_quad(v, nu, nv)
+        n = np.cross(v[1] - v[0], v[2] - v[0])
+        n = n / np.linalg.norm(n)
+        return p, np.tile(n, (len(p), 1)), uv, tris
+    tv = _split_long(v[t], 2.0 * cell_mm)
+    n = np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0])
+    ln = np.linalg.norm(n, axis=1)
+    keep = ln > 1e-12
+    tv, n = tv[keep], n[keep] / ln[keep, None]
+    p = tv.reshape(-1, 3)
+    return p, np.repeat(n, 3, axis=0), np.zeros((len(p), 2)), np.arange(len(p)).reshape(-1, 3)
+
+
+# --------------------------------------------------------------------------- irradiance
+
+_FORWARD_CACHE: dict = {}
+
+
+def _forward_model(ir, lighting):
+    key = (ir.content_hash, lighting)
+    fm = _FORWARD_CACHE.get(key)
+    if fm is None:
+        from lbscene.engine.forward import ForwardModel
+
+        if len(_FORWARD_CACHE) > 8:
+            _FORWARD_CACHE.clear()
+        fm = _FORWARD_CACHE[key] = ForwardModel(ir, lighting)
+    return fm
+
+
+def _prediction_bands(fm, terms, n) -> np.ndarray:
+    from lbscene.engine.forward import Prediction
+
+    return Prediction(fm.groups, list(terms), n, fm.ir.grid).bands()
+
+
+def _plane_groups(points: np.ndarray, normals: np.ndarray, min_size: int = 16):
+    """Indices of vertices grouped by plane (same normal and offset), and the rest."""
+    key_n = np.round(normals * 1000).astype(np.int64)
+    key_d = np.round(np.einsum("ij,ij->i", points, normals) * 10).astype(np.int64)
+    keys = np.c_[key_n, key_d]
+    _, inv = np.unique(keys, axis=0, return_inverse=True)
+    groups, rest = [], []
+    for g in range(inv.max() + 1 if len(inv) else 0):
+        idx = np.nonzero(inv == g)[0]
+        (groups if len(idx) >= min_size else rest).append(idx)
+    return groups, (np.concatenate(rest) if rest else np.zeros(0, int))
+
+
+def _indirect_nodes(points, normals, cell_mm):
+    """Coarse receivers for the smooth (global) part of the irradiance and how to
+    interpolate it back: planar groups get a bilinear grid, other vertices the value
+    of their voxel's centroid."""
+    groups, rest = _plane_groups(points, normals)
+    nodes_p, nodes_n, plans = [], [], []
+    base = 0
+    for idx in groups:
+        n = normals[idx[0]]
+        u = np.cross(n, [0.0, 0.0, 1.0] if abs(n[2]) < 0.9 else [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        p = points[idx]
+        s, t = p @ u, p @ v
+        ns = max(2, int(np.ceil((s.max() - s.min()) / cell_mm)) + 1)
+        nt = max(2, int(np.ceil((t.max() - t.min()) / cell_mm)) + 1)
+        gs = np.linspace(s.min(), s.max(), ns)
+        gt = np.linspace(t.min(), t.max(), nt)
+        S, T = np.meshgrid(gs, gt, indexing="ij")
+        d = float(p[0] @ n)
+        nodes_p.append(S.ravel()[:, None] * u + T.ravel()[:, None] * v + d * n)
+        nodes_n.append(np.tile(n, (ns * nt, 1)))
+        plans.append(("grid", idx, base, gs, gt, s, t))
+        base += ns * nt
+    if len(rest):
+        vox = np.floor(points[rest] / cell_mm).astype(np.int64)
+        nk = np.round(normals[rest] * 2).astype(np.int64)
+        _, inv = np.unique(np.c_[vox, nk], axis=0, return_inverse=True)
+        k = inv.max() + 1
+        cp = np.zeros((k, 3))
+        cn = np.zeros((k, 3))
+        np.add.at(cp, inv, points[rest])
+        np.add.at(cn, inv, normals[rest])
+        cnt = np.bincount(inv, minlength=k)[:, None]
+        cp /= cnt
+        cn /= np.maximum(np.linalg.norm(cn, axis=1, keepdims=True), 1e-12)
+        nodes_p.append(cp)
+        nodes_n.append(cn)
+        plans.append(("voxel", rest, base, inv))
+        base += k
+    if not nodes_p:
+        return np.zeros((0, 3)), np.zeros((0, 3)), []
+    return np.concatenate(nodes_p), np.concatenate(nodes_n), plans
+
+
+def _interpolate_nodes(values, plans, m, bands) -> np.ndarray:
+    out = np.zeros((m, bands))
+    for plan in plans:
+        if plan[0] == "grid":
+            _, idx, base, gs, gt, s, t = plan
+            ns, nt = len(gs), len(gt)
+            g = values[base:base + ns * nt].reshape(ns, nt, bands)
+            x = np.clip((s - gs[0]) / max(gs[-1] - gs[0], 1e-12) * (ns - 1), 0, ns - 1)
+            y = np.clip((t - gt[0]) / max(gt[-1] - gt[0], 1e-12) * (nt - 1), 0, nt - 1)
+            i0 = np.minimum(np.floor(x).astype(int), ns - 2)
+            j0 = np.minimum(np.floor(y).astype(int), nt - 2)
+            fx, fy = (x - i0)[:, None], (y - j0)[:, None]
+            out[idx] = ((1 - fx) * (1 - fy) * g[i0, j0] + fx * (1 - fy) * g[i0 + 1, j0]
+                        + (1 - fx) * fy * g[i0, j0 + 1] + fx * fy * g[i0 + 1, j0 + 1])
+        else:
+            _, idx, base, inv = plan
+            out[idx] = values[base + inv]
+    return out
+
+
+def _irradiance_bands(ir, lighting, points, normals, cell_mm: float, chunk: int = 2048) -> np.ndarray:
+    """Band-mean spectral irradiance (M, B), W·m⁻²·nm⁻¹, at vertices, from the forward model.
+
+    First-order light (lamps with every path/emitter effect, secondary sources) is
+    evaluated at every vertex; global transport (inter-reflection), which varies
+    slowly, on a coarse set of receivers (cells of ``cell_mm``) and interpolated.
+    """
+    fm = _forward_model(ir, lighting)
+    m, nb = len(points), ir.grid.count
+    out = np.zeros((m, nb))
+    if m == 0:
+        return out
+    off = np.zeros(m, bool)
+    for i in range(0, m, chunk):
+        sl = slice(i, i + chunk)
+        out[sl] = _prediction_bands(fm, fm.first_order_terms(points[sl], normals[sl], off[sl]),
+                                    len(points[sl]))
+    transports = fm.global_transports()
+    if transports:
+        np_, nn_, plans = _indirect_nodes(points, normals, cell_mm)
+        vals = np.zeros((len(np_), nb))
+        for i in range(0, len(np_), chunk):
+            sl = slice(i, i + chunk)
+            k = len(np_[sl])
+            terms = [t for gt in transports for t in gt.terms(np_[sl], nn_[sl], np.zeros(k, bool))]
+            vals[sl] = _prediction_bands(fm, terms, k)
+        out += _interpolate_nodes(vals, plans, m, nb)
+    return np.clip(out, 0.0, None)
+
+
+def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
+    fm = _forward_model(ir, lighting)
+    return np.clip(fm.spectral_irradiance_1nm([point], [normal])[0], 0.0, None)
+
+
+def _noise_offsets(size: int) -> np.ndarray:
+    """(x, y) mask offsets of channels G and B (the colour module's channel_offsets_xy)."""
+    try:
+        from lbscene.engine.colour.dither import channel_offsets_xy
+
+        offs = channel_offsets_xy(size)
+    except ImportError:
+        offs = ((0, 0), (size // 2, size // 3), (size // 3, size // 2))
+    return np.asarray([offs[1][0], offs[1][1], offs[2][0], offs[2][1]], np.int32)
+
+
+# --------------------------------------------------------------------------- builder
+
+class SceneBuilder:
+    """Render-time inputs of a graph for one IR, sample and display.
+
+    Parameters
+    ----------
+    ir, graph
+        The compiled booth and its render graph (dict, as from JSON).
+    sample
+        :class:`SampleSpec`.
+    display
+        :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`.
+    bake
+        :class:`~lbscene.runtimes.bake.BakeProducts` or None.
+    diffuse
+        ``'analytic'`` or ``'baked'`` (needs ``bake``).
+    exposure
+        ``'relative_white'``: a perfect white diffuser at the sample is shown at
+        ``white_fraction`` of the display's white luminance; ``'absolute'``: XYZ in
+        cd/m² as they are.
+    """
+
+    def __init__(self, ir, graph: dict, sample: SampleSpec, display, *, bake=None,
+                 diffuse: str = "analytic", exposure: str = "relative_white",
+                 white_fraction: float = 1.0, dither: bool = True, camera: CameraSpec | None = None):
+        if diffuse == "baked" and bake is None:
+            raise ValueError("diffuse='baked' needs bake products")
+        self.ir = ir
+        self.graph = graph
+        self.lighting = graph["lighting"]
+        self.sample = sample
+        self.display = display
+        self.bake = bake
+        self.diffuse = diffuse
+        self.exposure = exposure
+        self.white_fraction = float(white_fraction)
+        self.dither = bool(dither)
+        self.camera = camera or CameraSpec()
+        self._views: dict[str, ViewInputs] = {}
+        self._static: dict[str, np.ndarray] | None = None
+        self._geometry: dict | None = None
+        dims = (ir.interior.width_mm, ir.interior.depth_mm, ir.interior.height_mm)
+        self.extent_mm = float(max(dims))
+        self.cell_mm = self.extent_mm / 48.0
+        self.indirect_cell_mm = self.extent_mm / 8.0
+
+    # ------------------------------------------------------------------ static data
+    @property
+    def view_names(self) -> list[str]:
+        return [v["name"] for v in self.graph["views"]]
+
+    def static_textures(self) -> dict[str, np.ndarray]:
+        if self._static is None:
+            from .colour_bridge import blue_noise_mask
+            from .ltc import load_table
+
+            mats = self.graph["scene"]["materials"]
+            nb = self.graph["bands"]["blocks"]
+            m = np.zeros((len(mats), nb, 4), np.float32)
+            for row in mats:
+                b = np.zeros(4 * nb)
+                b[:len(row["reflectance_bands"])] = row["reflectance_bands"]
+                m[row["index"]] = b.reshape(nb, 4)
+            lt = load_table()
+            mag = np.zeros(lt.mag.shape[:2] + (4,), np.float32)
+            mag[..., :2] = lt.mag
+            noise = blue_noise_mask(64)
+            bn = np.zeros(noise.shape + (4,), np.float32)
+            bn[..., 0] = noise
+            self._static = {"materials": m, "ltc_minv": lt.minv.astype(np.float32), "ltc_mag": mag,
+                            "blue_noise": bn, "tone_lut": self.display.lut_texture()}
+        return self._static
+
+    def _rest_geometry(self) -> dict:
+        """Meshes at platform rotation 0: name → (positions, normals, uv, material, triangles)."""
+        if self._geometry is not None:
+            return self._geometry
+        by_id = {s.id: s for s in self.ir.surfaces}
+        mat_index = {m["id"]: m["index"] for m in self.graph["scene"]["materials"]}
+        out = {}
+        for name, spec in self.graph["resources"]["meshes"].items():
+            if name == "sample":
+                continue
+            parts = []
+            base = 0
+            for sid in spec["surfaces"]:
+                s = by_id[sid]
+                p, n, uv, tris = tessellate_surface(s, self.cell_mm)
+                parts.append((p, n, uv, np.full(len(p), mat_index[s.material], float), tris + base))
+                base += len(p)
+            if parts:
+                out[name] = tuple(np.concatenate([pt[i] for pt in parts]) for i in range(5))
+            else:
+                out[name] = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0),
+                             np.zeros((0, 3), int))
+        # the sample: a grid over its size, lifted off the platform
+        sp = self.graph["scene"]["sample_placement"]
+        c = np.asarray(sp["centre_mm"], float) + np.asarray(sp["normal"], float) * sp["lift_mm"]
+        u = np.asarray(sp["u_axis"], float)
+        nrm = np.asarray(sp["normal"], float)
+        v = np.cross(nrm, u)
+        w, h = self.sample.size_mm
+        q = np.array([c - u * w / 2 - v * h / 2, c + u * w / 2 - v * h / 2,
+                      c + u * w / 2 + v * h / 2, c - u * w / 2 + v * h / 2])
+        p, uv, tris = _grid_quad(q, SAMPLE_GRID, SAMPLE_GRID)
+        out["sample"] = (p, np.tile(nrm, (len(p), 1)), uv, np.zeros(len(p)), tris)
+        self._geometry = out
+        return out
+
+    # ------------------------------------------------------------------ views
+    def view(self, name: str) -> ViewInputs:
+        if name not in self._views:
+            self._views[name] = self._build_view(name)
+        return self._views[name]
+
+    def _view_spec(self, name: str) -> dict:
+        for v in self.graph["views"]:
+            if v["name"] == name:
+                return v
+        raise KeyError(name)
+
+    def _build_view(self, name: str) -> ViewInputs:
+        from .colour_bridge import project_reflectance, radiance_xyz_weights
+
+        ir, grid = self.ir, self.ir.grid
+        vs = self._view_spec(name)
+        rot = vs["rotation"]
+        R = rotation_matrix(rot["axis"], rot["angle_deg"])
+        o = np.asarray(rot["origin_mm"], float)
+        lamps_rotate = self.graph["scene"]["platform"]["luminaire_turns_with_platform"]
+        placement = {k: m["placement"] for k, m in self.graph["resources"]["meshes"].items()}
+        geo = self._rest_geometry()
+
+        def to_world(p, n, mounted):
+            if not mounted:
+                return p, n
+            return (p - o) @ R.T + o, n @ R.T
+
+        def to_light_frame(p_rest, n_rest, mounted):
+            """Receiver positions in the frame the forward model's lamps are in."""
+            if lamps_rotate:
+                if mounted:
+                    return p_rest, n_rest
+                return (p_rest - o) @ R + o, n_rest @ R     # R⁻¹ = Rᵀ
+            return to_world(p_rest, n_rest, mounted)
+
+        meshes = {}
+        for mname, (p, n, uv, mat, tris) in geo.items():
+            mounted = placement[mname] == "platform"
+            pw, nw = to_world(p, n, mounted)
+            if len(p):
+                pl, nl = to_light_frame(p, n, mounted)
+                irr = _irradiance_bands(ir, self.lighting, pl, nl, self.indirect_cell_mm)
+            else:
+                irr = np.zeros((0, grid.count))
+            meshes[mname] = [pw, nw, uv, mat, irr, tris]
+
+        # the light at the sample centre (1 nm): weights, projection, exposure
+        sp = self.graph["scene"]["sample_placement"]
+        c_rest = np.asarray(sp["centre_mm"], float) + np.asarray(sp["normal"], float) * sp["lift_mm"]
+        n_rest = np.asarray(sp["normal"], float)
+        c_world, n_world = to_world(c_rest[None], n_rest[None], True)
+        c_light, n_light = to_light_frame(c_rest[None], n_rest[None], True)
+        e_1nm = _irradiance_1nm(ir, self.lighting, c_light[0], n_light[0])
+        info: dict[str, Any] = {"diffuse": self.diffuse}
+        if self.diffuse == "baked":
+            e_bake = self.bake.sample_irradiance_bands(name, n_world[0])
+            e_ana = grid.integrate(e_1nm)
+            ratio = np.where(e_ana > 0, e_bake / np.where(e_ana > 0, e_ana, 1.0), 0.0)
+            meshes["sample"][4] = meshes["sample"][4] * ratio[None, :]
+            # keep the 1 nm shape inside each band, take the level of each band from the bake
+            from .colour_bridge import band_membership
+
+            memb = band_membership(grid.first_centre_nm, grid.width_nm, grid.count)
+            e_1nm = e_1nm * (ratio @ memb)
+            floor = self.bake.floor_irradiance
+            if floor is not None and "booth" in meshes:
+                pw, nw = meshes["booth"][0], meshes["booth"][1]
+                on_floor = (np.abs(pw[:, 2]) < 1e-6) & (nw[:, 2] > 0.99)
+                vals, inside = floor.lookup(pw[on_floor])
+                sel = np.nonzero(on_floor)[0][inside]
+                meshes["booth"][4][sel] = vals[inside]
+            info["bake"] = self.bake.describe(name)
+
+        packed = {}
+        for mname, (pw, nw, uv, mat, irr, tris) in meshes.items():
+            v = np.zeros((len(pw), VERTEX_FLOATS), np.float32)
+            v[:, 0:3], v[:, 3:6], v[:, 6:8], v[:, 8] = pw, nw, uv, mat
+            v[:, 9:9 + grid.count] = irr
+            packed[mname] = (v, np.ascontiguousarray(tris, dtype=np.uint32).ravel())
+
+        # spectral → XYZ weights for the light at the sample
+        w = np.zeros((16, 3))
+        w[:grid.count] = radiance_xyz_weights(e_1nm, grid)
+        xyz_weights = np.ascontiguousarray(w.reshape(4, 4, 3), dtype=np.float32).ravel()
+
+        # the sample's reflectance per measured geometry, projected for this light
+        sm = self.sample
+        ng = len(sm.geometries)
+        st = np.zeros((5, ng, 4), np.float32)
+        for j, (asp, _, r1) in enumerate(sm.geometries):
+            b = np.zeros(16)
+            b[:grid.count] = project_reflectance(r1, e_1nm, grid)
+            st[:4, j, :] = b.reshape(4, 4)
+            st[4, j, 0] = asp
+
+        # emitters, placed for the view
+        ems = self.graph["scene"]["emitters"]
+        et = np.zeros((max(len(ems), 1), EMITTER_TEXELS, 4), np.float32)
+        kinds = {"sphere": 0.0, "tube": 1.0, "panel": 2.0}
+        for i, e in enumerate(ems):
+            c = np.asarray(e["centre_mm"], float)
+            ax, aim, wax = (np.asarray(e[k], float) for k in ("axis", "aim", "width_axis"))
+            if e["rotates_with_platform"]:
+                c, ax, aim, wax = (c - o) @ R.T + o, ax @ R.T, aim @ R.T, wax @ R.T
+            et[i, 0] = (*c, kinds[e["kind"]])
+            et[i, 1] = (*ax, e["half_length_mm"])
+            et[i, 2] = (*aim, e["half_width_mm"])
+            et[i, 3] = (*wax, 0.0)
+            b = np.zeros(16)
+            b[:grid.count] = e["intensity_bands_W_sr_nm"]
+            et[i, 4:8] = b.reshape(4, 4)
+            prof = np.asarray(e["profile"], float)
+            et[i, 8:8 + PROFILE_SAMPLES // 4] = prof.reshape(-1, 4)
+
+        # the illumination centre of the geometry (lamps' luminous centre), placed for the view
+        illum = self._illumination_centre()
+        if lamps_rotate:
+            illum = (illum - o) @ R.T + o
+
+        # exposure and display
+        from lbscene.engine.spectra import cmfs_1nm
+
+        y_white = 683.0 / np.pi * float(e_1nm @ cmfs_1nm()[:, 1])
+        d = self.display
+        if self.exposure == "absolute":
+            k = 1.0
+        else:
+            k = self.white_fraction * d.white_Y_cd_m2 / y_white if y_white > 0 else 1.0
+
+        values = {
+            "view.identity": _gl(np.eye(4)),
+            "view.eye_mm": None,   # set per frame (camera)
+            "view.illumination_centre_mm": np.asarray(illum, np.float32),
+            "view.emitter_count": len(ems),
+            "view.xyz_weights": xyz_weights,
+            "sample.geometry_count": ng,
+            "sample.roughness": float(sm.roughness),
+            "sample.specular_weight": float(min(sm.gloss_GU, 200.0) / 100.0),
+            "sample.f0": float(COAT_F0),
+            "ltc.size": int(self.static_textures()["ltc_minv"].shape[0]),
+            "display.exposure": float(k),
+            "display.xyz_offset": np.asarray(d.xyz_offset, np.float32),
+            "display.xyz_to_rgb": _gl(d.xyz_to_rgb),
+            "display.tone_kind": int(d.tone_kind),
+            "display.tone_params": np.asarray(d.tone_params, np.float32).ravel(),
+            "display.tone_lut_size": int(d.lut_texture().shape[1]),
+            "display.gamut_mapping": int(d.gamut_mapping),
+            "display.inv_y_span": float(d.inv_y_span),
+            "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
+            "dither.channel_offsets": _noise_offsets(int(self.static_textures()["blue_noise"].shape[0])),
+            "dither.amplitude": 1.0 if self.dither else 0.0,
+        }
+        info.update({"realised": vs["realised"], "geometry": vs["geometry"],
+                     "platform_rotation_deg": vs["platform_rotation_deg"],
+                     "sample_illuminance_lx": float(683.0 * e_1nm @ cmfs_1nm()[:, 1]),
+                     "white_Y_cd_m2": y_white, "exposure": k})
+        return ViewInputs(name=name, meshes=packed, textures={"emitters": et, "sample_reflectance": st},
+                          values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
+                          sample_normal=n_world[0], info=info)
+
+    def _illumination_centre(self) -> np.ndarray:
+        from .graph import _illumination_centre
+
+        return _illumination_centre(self.ir, self.lighting)
+
+    # ------------------------------------------------------------------ per frame
+    def camera_values(self, name: str, size: tuple[int, int]) -> dict[str, Any]:
+        """view_proj and eye for a view at a viewport size."""
+        vs = self._view_spec(name)
+        vi = self.view(name)
+        eye = np.asarray(self.camera.position_mm or vs["camera"]["position_mm"], float)
+        target = np.asarray(self.camera.look_at_mm if self.camera.look_at_mm is not None
+                            else vi.sample_centre_mm, float)
+        dist = float(np.linalg.norm(target - eye))
+        near = max(1.0, min(10.0, 0.05 * dist))
+        far = dist + 4.0 * self.extent_mm
+        w, h = size
+        vp = perspective(self.camera.vertical_fov_deg, w / h, near, far) @ look_at(eye, target)
+        return {"view.view_proj": _gl(vp), "view.eye_mm": eye.astype(np.float32),
+                "_view_proj": vp}

@@ -1,0 +1,228 @@
+#version 300 es
+// The sample.  Diffuse part: the reflectance factor measured at the geometry seen at this
+// pixel (linear interpolation in aspecular angle between the measured geometries, columns
+// of u_sample_reflectance sorted by angle) times the band irradiance / π.  Specular part:
+// GGX highlights of the emitters (tubes as line lights of finite width, panels and lamp
+// bulbs as area lights) by linearly transformed cosines (Heitz et al. 2016), with the
+// project's own fitted tables (runtimes/ltc.py) and Schlick's Fresnel.
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+
+in vec3 v_position_mm;
+in vec3 v_normal;
+in vec2 v_uv;
+flat in int v_material;
+in vec4 v_irradiance0;
+in vec4 v_irradiance1;
+in vec4 v_irradiance2;
+in vec4 v_irradiance3;
+
+uniform sampler2D u_sample_reflectance;  // (geometries × 5): rows 0..3 band blocks, row 4 x = aspecular deg
+uniform int u_sample_geometry_count;
+uniform vec3 u_eye_mm;
+uniform vec3 u_illumination_mm;          // light that defines the measurement geometry
+uniform sampler2D u_emitters;            // (24 × emitters), layout in runtimes/graph.py
+uniform int u_emitter_count;
+uniform sampler2D u_ltc_minv;            // (size × size): x = sqrt(1 − cos θv), y = roughness
+uniform sampler2D u_ltc_mag;
+uniform int u_ltc_size;
+uniform float u_roughness;
+uniform float u_specular_weight;
+uniform float u_f0;
+
+layout(location = 0) out vec4 o_radiance0;
+layout(location = 1) out vec4 o_radiance1;
+layout(location = 2) out vec4 o_radiance2;
+layout(location = 3) out vec4 o_radiance3;
+
+const float PI = 3.141592653589793;
+const float INV_PI = 0.31830988618379067;
+const int PROFILE_LAST = 63;            // PROFILE_SAMPLES - 1
+const int PROFILE_TEXEL = 8;
+// (integer / and % are avoided: CPUs do not vectorise integer division)
+
+// ---------------------------------------------------------------- measured geometries
+
+float aspecular_deg(vec3 P, vec3 N, vec3 V) {
+    vec3 L = normalize(u_illumination_mm - P);
+    vec3 T = L - N * dot(L, N);
+    float tl = length(T);
+    T = tl > 1e-6 ? T / tl : normalize(cross(N, vec3(1.0, 0.0, 0.0)));
+    float theta_i = acos(clamp(dot(L, N), -1.0, 1.0));
+    float theta_v = atan(-dot(V, T), dot(V, N));   // > 0 on the far side from the light
+    return degrees(theta_i - theta_v);
+}
+
+void reflectance_at(float asp, out vec4 r0, out vec4 r1, out vec4 r2, out vec4 r3) {
+    int n = u_sample_geometry_count;
+    int i0 = 0;
+    int i1 = 0;
+    float t = 0.0;
+    float prev = texelFetch(u_sample_reflectance, ivec2(0, 4), 0).x;
+    if (asp > prev && n > 1) {
+        i0 = n - 1;
+        i1 = n - 1;
+        for (int k = 1; k < n; k++) {
+            float a = texelFetch(u_sample_reflectance, ivec2(k, 4), 0).x;
+            if (asp <= a) {
+                i0 = k - 1;
+                i1 = k;
+                t = (asp - prev) / max(a - prev, 1e-6);
+                break;
+            }
+            prev = a;
+        }
+    }
+    r0 = mix(texelFetch(u_sample_reflectance, ivec2(i0, 0), 0), texelFetch(u_sample_reflectance, ivec2(i1, 0), 0), t);
+    r1 = mix(texelFetch(u_sample_reflectance, ivec2(i0, 1), 0), texelFetch(u_sample_reflectance, ivec2(i1, 1), 0), t);
+    r2 = mix(texelFetch(u_sample_reflectance, ivec2(i0, 2), 0), texelFetch(u_sample_reflectance, ivec2(i1, 2), 0), t);
+    r3 = mix(texelFetch(u_sample_reflectance, ivec2(i0, 3), 0), texelFetch(u_sample_reflectance, ivec2(i1, 3), 0), t);
+}
+
+// ---------------------------------------------------------------- LTC
+
+// Bilinear lookup (float textures are not filterable everywhere: fetch and mix).
+vec4 ltc_fetch(sampler2D table, float roughness, float cos_theta) {
+    float s = float(u_ltc_size - 1);
+    vec2 x = vec2(sqrt(clamp(1.0 - cos_theta, 0.0, 1.0)), clamp(roughness, 0.0, 1.0)) * s;
+    ivec2 i = ivec2(min(floor(x), vec2(s - 1.0)));
+    vec2 f = x - vec2(i);
+    vec4 a = texelFetch(table, i, 0);
+    vec4 b = texelFetch(table, i + ivec2(1, 0), 0);
+    vec4 c = texelFetch(table, i + ivec2(0, 1), 0);
+    vec4 d = texelFetch(table, i + ivec2(1, 1), 0);
+    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
+// ∫ over the great arc a→b of the edge term of Lambert's formula (z component).
+float edge_integral(vec3 a, vec3 b) {
+    vec3 c = cross(a, b);
+    float s = length(c);
+    return s > 1e-7 ? c.z * atan(s, dot(a, b)) / s : 0.0;
+}
+
+// Integral of the clamped cosine over the quad transformed by minv (quad given relative
+// to the shading point, wound counter-clockwise as seen from it; the back side gives 0).
+float ltc_quad(mat3 minv, vec3 q0, vec3 q1, vec3 q2, vec3 q3) {
+    vec3 p[4] = vec3[4](minv * q0, minv * q1, minv * q2, minv * q3);
+    vec3 c[6];
+    int n = 0;
+    for (int i = 0; i < 4; i++) {
+        vec3 a = p[i];
+        vec3 b = p[(i + 1) & 3];
+        if (a.z >= 0.0) {
+            c[n] = a;
+            n++;
+        }
+        if ((a.z >= 0.0) != (b.z >= 0.0)) {
+            c[n] = mix(a, b, a.z / (a.z - b.z));
+            n++;
+        }
+    }
+    if (n < 3) {
+        return 0.0;
+    }
+    float sum = 0.0;
+    for (int i = 0; i < n; i++) {
+        sum += edge_integral(normalize(c[i]), normalize(c[i + 1 < n ? i + 1 : 0]));
+    }
+    return max(-sum, 0.0) * (0.5 * INV_PI);
+}
+
+vec4 emitter_texel(int row, int k) {
+    return texelFetch(u_emitters, ivec2(k, row), 0);
+}
+
+float emitter_profile(int row, float theta) {
+    float x = clamp(theta * INV_PI, 0.0, 1.0) * float(PROFILE_LAST);
+    int i = min(int(floor(x)), PROFILE_LAST - 1);
+    int j = i + 1;
+    float a = emitter_texel(row, PROFILE_TEXEL + (i >> 2))[i & 3];
+    float b = emitter_texel(row, PROFILE_TEXEL + (j >> 2))[j & 3];
+    return mix(a, b, x - float(i));
+}
+
+void main() {
+    vec3 P = v_position_mm;
+    vec3 N = normalize(v_normal);
+    vec3 V = normalize(u_eye_mm - P);
+    if (dot(N, V) < 0.0) {
+        N = -N;
+    }
+
+    vec4 r0, r1, r2, r3;
+    reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
+    o_radiance0 = r0 * v_irradiance0 * INV_PI;
+    o_radiance1 = r1 * v_irradiance1 * INV_PI;
+    o_radiance2 = r2 * v_irradiance2 * INV_PI;
+    o_radiance3 = r3 * v_irradiance3 * INV_PI;
+
+    if (u_specular_weight <= 0.0 || u_emitter_count == 0) {
+        return;
+    }
+    float cos_v = clamp(dot(N, V), 1e-4, 1.0);
+    vec4 t1 = ltc_fetch(u_ltc_minv, u_roughness, cos_v);
+    vec4 t2 = ltc_fetch(u_ltc_mag, u_roughness, cos_v);
+    mat3 minv = mat3(vec3(t1.x, 0.0, t1.y), vec3(0.0, 1.0, 0.0), vec3(t1.z, 0.0, t1.w));
+    vec3 T1 = V - N * dot(V, N);
+    T1 = length(T1) > 1e-5 ? normalize(T1)
+                           : normalize(cross(N, abs(N.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
+    vec3 T2 = cross(N, T1);
+    minv = minv * transpose(mat3(T1, T2, N));
+    float lobe = (u_f0 * t2.x + (1.0 - u_f0) * t2.y) * u_specular_weight;
+
+    vec4 s0 = vec4(0.0), s1 = vec4(0.0), s2 = vec4(0.0), s3 = vec4(0.0);
+    for (int e = 0; e < u_emitter_count; e++) {
+        vec4 e0 = emitter_texel(e, 0);
+        vec4 e1 = emitter_texel(e, 1);
+        vec4 e2 = emitter_texel(e, 2);
+        vec3 c = e0.xyz;
+        int kind = int(e0.w + 0.5);
+        vec3 w = normalize(P - c);            // emitter → shading point
+        float hl = e1.w;
+        float hw = e2.w;
+        vec3 a;
+        vec3 s;
+        float area_mm2;
+        if (kind == 1) {                      // tube: a quad along the axis facing P
+            s = cross(w, e1.xyz);
+            float sl = length(s);
+            if (sl < 1e-4) {
+                continue;
+            }
+            a = e1.xyz * hl;
+            s = s / sl * hw;
+            area_mm2 = 4.0 * hl * hw * max(sl, 0.2);
+        } else if (kind == 2) {               // panel, emitting toward aim
+            float ca = dot(w, e2.xyz);
+            if (ca <= 0.0) {
+                continue;
+            }
+            a = e1.xyz * hl;
+            s = emitter_texel(e, 3).xyz * hw;
+            area_mm2 = 4.0 * hl * hw * max(ca, 0.1);
+        } else {                              // sphere: a facing square of area π r²
+            vec3 ax = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+            a = ax * hw;
+            s = cross(w, ax) * hw;
+            area_mm2 = 4.0 * hw * hw;
+        }
+        vec3 q = c - P;
+        float form = ltc_quad(minv, q - a - s, q + a - s, q + a + s, q - a + s);
+        if (form <= 0.0) {
+            continue;
+        }
+        // emitter radiance toward P: intensity · profile / projected area (W·sr⁻¹·m⁻²·nm⁻¹)
+        float theta = acos(clamp(dot(w, e2.xyz), -1.0, 1.0));
+        float k = form * emitter_profile(e, theta) / (area_mm2 * 1e-6);
+        s0 += k * emitter_texel(e, 4);
+        s1 += k * emitter_texel(e, 5);
+        s2 += k * emitter_texel(e, 6);
+        s3 += k * emitter_texel(e, 7);
+    }
+    o_radiance0 += lobe * s0;
+    o_radiance1 += lobe * s1;
+    o_radiance2 += lobe * s2;
+    o_radiance3 += lobe * s3;
+}
