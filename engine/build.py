@@ -20,14 +20,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from importlib import import_module
 from pathlib import Path
 from typing import Callable
 
+from .atomic import atomic_replace_dir, temporary_dir_for, write_atomic
 from .diagnostics import LbsceneUserError
 from .ir import SceneIR, canonical_json
 
@@ -56,33 +55,6 @@ class BuildResult:
                 "skipped_writers": self.skipped_writers}
 
 
-def write_atomic(path: Path, data: bytes | str) -> None:
-    """Write a file through a temporary sibling and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    raw = data.encode() if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(raw)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_replace_dir(tmp_dir: Path, out_dir: Path) -> None:
-    """Move a finished folder into place, replacing ``out_dir`` (old one kept until then)."""
-    out_dir = Path(out_dir)
-    old = None
-    if out_dir.exists():
-        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-        os.replace(out_dir, old)
-    os.replace(tmp_dir, out_dir)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -103,7 +75,7 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
     lightings = [lighting] if lighting else list(ir.lighting)
     out_dir = Path(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    tmp = temporary_dir_for(out_dir)
     result = BuildResult(out_dir=out_dir, ir_hash=ir.content_hash, booth_name=ir.booth_name,
                          lightings=lightings)
     try:

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import FitProblem, FitResult, effect_parameter, resolve_free_parameters
+from .fit import FitProblem, FitResult, effect_parameter
 
 __all__ = ["Suspect", "Diagnosis", "diagnose", "consistent_with_noise", "effects_snippet",
            "moran_i", "SIGNIFICANT", "TIE_MARGIN", "NoiseModel", "noise_model"]
@@ -394,18 +394,21 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     d.consistent = consistent_with_noise(base, **ctest)
     red = base.chi2 / base.dof
     d.where = _where(meas, base)
-    if d.consistent:
+    helpful = [s for s in suspects if s.score > SIGNIFICANT]
+    # χ²/dof is a weak test (its spread is √(2/dof)); a suspect that lowers the BIC by more than
+    # SIGNIFICANT is strong evidence even when χ² looks acceptable, so only the two together say
+    # "none".  Under pure noise one extra parameter gains χ²₁ − ln n, beyond 10 with p < 1e-3.
+    if d.consistent and not helpful:
         d.verdict = "none"
         d.explanation.append(
-            f"the residual is at the noise level (χ²/dof = {red:.2f} with noise {noise.percent:.2g} %): "
-            "no missing effect is needed to explain these data")
-        helpful = [s for s in suspects if s.score > SIGNIFICANT]
-        if helpful:
-            d.explanation.append(
-                f"{helpful[0].effect} would still lower the BIC by {helpful[0].score:.1f}; measure more "
-                "points (lbscene plan) before believing it")
+            f"the residual is at the noise level (χ²/dof = {red:.2f} with noise {noise.percent:.2g} %) "
+            "and no candidate effect improves the fit significantly: no missing effect is needed "
+            "to explain these data")
         return d
-    helpful = [s for s in suspects if s.score > SIGNIFICANT]
+    if d.consistent:
+        d.explanation.append(
+            f"χ²/dof = {red:.2f} is within the noise, but {helpful[0].effect} lowers the BIC by "
+            f"{helpful[0].score:.1f}: the residual has structure that noise does not explain")
     if not helpful:
         d.verdict = "unexplained"
         d.explanation.append(f"χ²/dof = {red:.2f}: the residual is above the noise "

@@ -506,7 +506,7 @@ class ReferenceEngine:
         cells, ext = self._fine_patches()
         offsets = np.cumsum([0] + [c[7] * c[8] for c in cells])
         npatch = offsets[-1]
-        centres, normals, mats, corners = [], [], [], []
+        normals, mats, corners = [], [], []
         for role, axis, val, sgn, mat, a1, a2, n1, n2 in cells:
             e1 = np.linspace(ext[a1][0], ext[a1][1], n1 + 1)
             e2 = np.linspace(ext[a2][0], ext[a2][1], n2 + 1)

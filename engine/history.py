@@ -11,12 +11,12 @@ interrupted run never leaves a half-written history.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["HistoryEntry", "append_history", "read_history", "change_label", "plot_history"]
+from .atomic import write_atomic
+
+__all__ = ["append_history", "read_history", "change_label", "plot_history"]
 
 MAX_ENTRIES = 10_000
 
@@ -73,17 +73,7 @@ def append_history(path: Path, entry: dict) -> dict:
     entry["step"] = (old[-1].get("step", len(old)) + 1) if old else 1
     entry["label"] = change_label(old[-1] if old else None, entry)
     lines = [json.dumps(e, sort_keys=True, ensure_ascii=False) for e in old + [entry]]
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=str(path.parent))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write("\n".join(lines) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomic(path, "\n".join(lines) + "\n")
     return entry
 
 

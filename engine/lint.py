@@ -188,7 +188,7 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
                 E("LB300", f"lamp '{lp.id}' extends outside the booth interior", "lamps", i,
                   "position_mm", value=f"point {np.round(e, 1).tolist()} mm",
                   expected="inside the interior box "
-                           f"(|x| ≤ width/2, |y| ≤ depth/2, 0 ≤ z ≤ height)")
+                           "(|x| ≤ width/2, |y| ≤ depth/2, 0 ≤ z ≤ height)")
                 break
     if not _inside(booth.sample_position_mm, booth):
         E("LB306", "sample position is outside the booth", "sample_position_mm",

@@ -78,7 +78,7 @@ class Plan:
 def candidate_pool(ir, lighting: str, margin_mm: float = 30.0) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Feasible extra readings: (points (K,3), normals (K,3), kinds)."""
     it = ir.interior
-    w, d, h = it.width_mm / 2 - margin_mm, it.depth_mm / 2 - margin_mm, it.height_mm
+    w, d = it.width_mm / 2 - margin_mm, it.depth_mm / 2 - margin_mm
     pts, nrm, kinds = [], [], []
 
     def add(p, n, k):

@@ -104,7 +104,7 @@ def read_ies(path: Path, display: str) -> IesData:
                                       expected="TILT=NONE")
     try:
         nums = [float(x) for x in " ".join(lines[tilt_idx + 1:]).replace(",", " ").split()]
-        n_lamps, lm_per_lamp, mult, nv, nh = nums[0], nums[1], nums[2], int(nums[3]), int(nums[4])
+        _n_lamps, lm_per_lamp, mult, nv, nh = nums[0], nums[1], nums[2], int(nums[3]), int(nums[4])
         rest = nums[13:]  # skip photometric type, units, dimensions, ballast factors, watts
         v = np.array(rest[:nv])
         h = np.array(rest[nv:nv + nh])

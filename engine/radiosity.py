@@ -40,7 +40,6 @@ def patch_form_factors(patches: Patches, sub: int = 2, near_factor: float = 3.0)
     """
     from .forward_geometry import polygon_form_factor_pairs
 
-    P = len(patches)
     c = patches.centres
     F = polygon_form_factor(c, patches.normals, patches.polys, patches.normals)
     diag = np.linalg.norm(patches.polys[:, 2] - patches.polys[:, 0], axis=1)

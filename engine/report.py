@@ -12,11 +12,11 @@ from __future__ import annotations
 import base64
 import html
 import io
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from .atomic import write_atomic
 
 __all__ = ["render_report", "write_report"]
 
@@ -199,16 +199,5 @@ def write_report(res, out: Path) -> Path:
     matplotlib.use("Agg")
     text = render_report(res)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=out.name + ".", suffix=".tmp", dir=str(out.parent))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, out)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomic(out, text)
     return out

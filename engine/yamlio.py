@@ -33,7 +33,7 @@ from ruamel.yaml import YAML
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from .diagnostics import Diagnostic, LbsceneUserError, SourceLocation
+from .diagnostics import LbsceneUserError, SourceLocation
 
 __all__ = [
     "MAX_YAML_BYTES",

@@ -60,7 +60,7 @@ def render_all() -> dict[str, str]:
 
 
 def main() -> int:
-    from lbscene.engine.build import write_atomic
+    from lbscene.engine.atomic import write_atomic
 
     JSON_DIR.mkdir(exist_ok=True)
     for name, text in render_all().items():

@@ -31,14 +31,13 @@ Band methods compared
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_path
 from ..spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, to_reference
 from .band_weighting import (band_xyz_weights, cmfs_1nm, illuminant_bands, project_reflectance,
                              reference_xyz)
@@ -359,15 +358,9 @@ def plot_per_patch(results: list[LightingResult], out_png) -> Path:
     fig.suptitle(f"Per-patch ΔE00 against the 1 nm reference ({COLORCHECKER_SET}, CIE 1931 2°); "
                  f"dashed: target max {TARGET_MAX_DE00}", fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.55 / fig.get_figheight()))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=110)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        with atomic_path(out) as tmp:
+            fig.savefig(tmp, format="png", dpi=110)
     finally:
         plt.close(fig)
     return out

@@ -34,15 +34,11 @@ def register(app: typer.Typer) -> None:
         hp = measurements.with_name(measurements.stem + ".history.jsonl")
         entries = read_history(hp)
         if plot is not None and entries:
-            import tempfile
-
-            import os
+            from lbscene.engine.atomic import atomic_path
 
             fig = plot_history(entries, title=f"history of {measurements.name}")
-            fd, tmp = tempfile.mkstemp(suffix=".png", dir=str(plot.resolve().parent))
-            os.close(fd)
-            fig.savefig(tmp, format="png", bbox_inches="tight")
-            os.replace(tmp, plot)
+            with atomic_path(plot, suffix=".png") as tmp:
+                fig.savefig(tmp, format="png", bbox_inches="tight")
         if format is Format.json:
             typer.echo(json.dumps({"history": str(hp), "entries": entries,
                                    "plot": str(plot) if plot and entries else None}, indent=2,

@@ -40,7 +40,7 @@ def register(app: typer.Typer) -> None:
                               allowed_dirs=tuple(allow_path or ()), progress=cb)
         p = plan_for(res, max_points=points)
         if out is not None and p is not None:
-            from lbscene.engine.build import write_atomic
+            from lbscene.engine.atomic import write_atomic
 
             write_atomic(out, p.csv_template())
         if format is Format.json:
