@@ -239,28 +239,6 @@ def _enabled_fit_params(ir, lighting, effects, already) -> list:
     return out
 
 
-def _affordable(meas, effects, free, joint, noise, cache) -> list:
-    """The joint parameters whose change costs less than MAX_JOINT_REFIT_COST_S per evaluation."""
-    import time
-
-    if not joint:
-        return []
-    probe = FitProblem(meas, effects, list(free) + list(joint), noise.percent, noise.spectral_percent, cache)
-    x0 = np.array([probe.free[i].initial for i in probe.nl], float)
-    probe.components(x0)
-    keep = []
-    for fp in joint:
-        k = probe.nl.index(probe.free.index(fp))
-        x = x0.copy()
-        lo, hi = fp.bounds
-        x[k] = x[k] + 0.01 * (hi - lo) if x[k] + 0.01 * (hi - lo) <= hi else x[k] - 0.01 * (hi - lo)
-        t = time.perf_counter()
-        probe.components(x)
-        if time.perf_counter() - t <= MAX_JOINT_REFIT_COST_S:
-            keep.append(fp)
-    return keep
-
-
 def _coarsen(effects: dict) -> dict:
     from .effects.registry import get_effect
 
@@ -350,7 +328,9 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     noise = noise_model(meas)
     cache = base_problem.cache if cache is None else cache
     joint = _enabled_fit_params(ir, lighting, effects, base_problem.free)
-    base_free = list(base_problem.free) + _affordable(meas, effects, base_problem.free, joint, noise, cache)
+    # which joint parameters are affordable is decided by each effect's analytic cost model
+    # (refit_cost_s), never by timing: the verdict must not depend on the machine's load
+    base_free = list(base_problem.free) + joint
     base_fp = FitProblem(meas, effects, base_free, noise.percent, noise.spectral_percent, cache)
     base = base_fp.solve()
     n = base.n_residuals

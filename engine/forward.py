@@ -371,7 +371,10 @@ class ForwardModel:
         if resp is not None:
             base = base * resp
         if incidence_weight is not None:
-            base = base * incidence_weight(cos_rx)
+            ck = getattr(incidence_weight, "cache_key", None)
+            w = (incidence_weight(cos_rx) if ck is None else
+                 self.ctx.memo(f"incidence:{ck!r}", (es.points_mm, P, N), lambda: incidence_weight(cos_rx)))
+            base = base * w
         channels = [(1.0, (), None)]
         pk = None
         for cls, p, fn in self._hooks("path_factors", exclude):

@@ -94,6 +94,7 @@ class RadiosityTransport:
             self.cross_pp = ctx.cache[ck]
         self._B = None
         self._terms = None
+        self._E0 = None
 
     # ------------------------------------------------------------------ solve
     def _first_order_at_patches(self):
@@ -131,61 +132,70 @@ class RadiosityTransport:
             E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
         return terms, E0
 
+    def _first_order(self):
+        """First-order light on the patches, once per model (parameters fixed)."""
+        if self._terms is None:
+            self._terms, self._E0 = self._first_order_at_patches()
+        return self._terms, self._E0
+
+    def _band_classes(self):
+        """Bands whose reflectances (and plate transmittance) coincide share one solve:
+        ``(unique rows (U, P[+1]), band → row index (B,), cache key)``."""
+        from .forward import array_key
+
+        sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
+        uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
+        return uniq, inv.ravel(), (self.p.patch_size_mm, self.p.max_bounces, array_key(uniq))
+
+    def _neumann_terms(self, u) -> int | None:
+        """Jacobi sweeps for a 1e-9 relative residual when the series converges fast, else None."""
+        P = len(self.patches)
+        r = u[:P]
+        q = float(np.max(r * self.F.sum(axis=1)))        # bound on the spectral radius of ρF
+        if self.p.max_bounces > 0:
+            return self.p.max_bounces - 1
+        if q >= 1:
+            return None
+        return int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12))))
+
+    def _lu(self, key, j, u):
+        from scipy.linalg import lu_factor
+
+        store = self.ctx.cache.setdefault("_rad_lu", {})
+        k = key + (j,)
+        if k not in store:
+            P = len(self.patches)
+            r = u[:P]
+            Fu = self._F_band(u[P] if u.size > P else None)
+            if len(store) >= 64:
+                store.pop(next(iter(store)))
+            store[k] = lu_factor(np.eye(P) - r[:, None] * Fu)
+        return store[k]
+
     def _solve(self):
+        """Patch radiosity B (bands, patches, terms): for :meth:`patch_radiosity`."""
         if self._B is not None:
             return
-        terms, E0 = self._first_order_at_patches()
-        nb = self.rho.shape[1]
+        from scipy.linalg import lu_solve
+
+        terms, E0 = self._first_order()
+        uniq, inv, key = self._band_classes()
         P = len(self.patches)
-        B = np.zeros((nb, P, E0.shape[1]))
-        if self.p.max_bounces > 0:
-            for b in range(nb):
-                r = self.rho[:, b][:, None]
-                Fb = self._F_band(None if self.plate_T is None else self.plate_T[b])
-                x = r * E0
-                acc = x.copy()
-                for _ in range(self.p.max_bounces - 1):
-                    x = r * (Fb @ x)
-                    acc += x
-                B[b] = acc
-        else:
-            from scipy.linalg import lu_factor, lu_solve
-
-            from .forward import array_key
-
-            # bands whose reflectances (and plate transmittance) are identical share one solve
-            sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
-            uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
-            rowsum = self.F.sum(axis=1)
-            K = E0.shape[1]
-            lk = ("lu", self.p.patch_size_mm, array_key(uniq))
-            lus = self.ctx.cache.get(lk)
-            sol = []
-            for j, u in enumerate(uniq):
-                r = u[:P]
+        sol = []
+        for j, u in enumerate(uniq):
+            r = u[:P]
+            n_it = self._neumann_terms(u)
+            if n_it is not None and (self.p.max_bounces > 0 or n_it * E0.shape[1] < P / 3):
                 Fu = self._F_band(u[P] if u.size > P else None)
-                q = float(np.max(r * rowsum))            # bound on the spectral radius of ρF
-                n_it = int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12)))) if q < 1 else 10 ** 9
-                if lus is None and n_it * K < P / 3:
-                    # dark booths: a few Jacobi sweeps beat a factorisation
-                    x = r[:, None] * E0
-                    acc = x.copy()
-                    for _ in range(n_it):
-                        x = r[:, None] * (Fu @ x)
-                        acc += x
-                    sol.append(acc)
-                    continue
-                if lus is None:
-                    lus = {}
-                if j not in lus:
-                    lus[j] = lu_factor(np.eye(P) - r[:, None] * Fu)
-                sol.append(lu_solve(lus[j], r[:, None] * E0))
-            if lus is not None:
-                self.ctx.cache[lk] = lus
-            for b in range(nb):
-                B[b] = sol[inv[b]]
-        self._B = B
-        self._terms = terms
+                x = r[:, None] * E0
+                acc = x.copy()
+                for _ in range(n_it):
+                    x = r[:, None] * (Fu @ x)
+                    acc += x
+                sol.append(acc)
+            else:
+                sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
+        self._B = np.stack([sol[i] for i in inv])
 
     def _F_band(self, T):
         if T is None or self.cross_pp is None:
@@ -198,19 +208,58 @@ class RadiosityTransport:
         self._solve()
         return self._B
 
+    def _receiver_operators(self, G, P_rx) -> np.ndarray:
+        """(B, M, P) operators R_b = G_b·(I − ρ_b F_b)⁻¹·diag(ρ_b): patch first-order light →
+        inter-reflected light at the receivers.
+
+        They depend on geometry, reflectances and the receivers only, not on the lamps or any
+        lamp parameter, so a fit that varies intensities, σ, apertures… reuses them and each
+        evaluation is a few small matrix products (the solve is done once, transposed, with
+        the receivers as right-hand sides).
+        """
+        from scipy.linalg import lu_solve
+
+        from .forward import array_key
+
+        uniq, inv, key = self._band_classes()
+        ck = key + (array_key(G, P_rx),)
+        store = self.ctx.cache.setdefault("_rad_ops", {})
+        hit = store.get(ck)
+        if hit is not None:
+            return hit
+        Pn = len(self.patches)
+        if self.plate_T is not None:
+            from .forward_geometry import segment_hits_rectangle
+
+            cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
+        ops = []
+        for j, u in enumerate(uniq):
+            r = u[:Pn]
+            Gj = G if self.plate_T is None else np.where(cross, G * u[Pn], G)
+            n_it = self._neumann_terms(u)
+            if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
+                A = r[:, None] * self._F_band(u[Pn] if u.size > Pn else None)
+                y = Gj
+                acc = y * r[None, :]
+                for _ in range(n_it):
+                    y = y @ A
+                    acc += y * r[None, :]
+                ops.append(acc)
+            else:
+                x = lu_solve(self._lu(key, j, u), Gj.T, trans=1)        # (I − ρF)⁻ᵀ Gᵀ
+                ops.append((r[:, None] * x).T)
+        out = np.stack([ops[i] for i in inv])
+        if len(store) >= 32:
+            store.pop(next(iter(store)))
+        store[ck] = out
+        return out
+
     def terms(self, P, N, meter):
         from .forward import Term
 
-        self._solve()
+        terms, E0 = self._first_order()
         G = self.model.lambertian_gather(self.patches.polys, self.patches.normals, P, N, meter)
-        if self.plate_T is None:
-            ind = np.einsum("mp,bpk->kmb", G, self._B)
-        else:
-            from .forward_geometry import segment_hits_rectangle
-
-            cross = segment_hits_rectangle(self.patches.centres, P, self.plate_rect)      # (M, P)
-            Gc, Gn = G * cross, G * ~cross
-            ind = (np.einsum("mp,bpk->kmb", Gn, self._B)
-                   + np.einsum("mp,bpk,b->kmb", Gc, self._B, self.plate_T))
+        R = self._receiver_operators(G, P)
+        ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
-                     "indirect") for k, t in enumerate(self._terms)]
+                     "indirect") for k, t in enumerate(terms)]

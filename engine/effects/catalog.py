@@ -163,6 +163,23 @@ def _diffuser_fraction(ir, p) -> float:
     return 0.0
 
 
+def _fresnel_relative(cos_i, ior: float) -> np.ndarray:
+    """Slab transmittance at incidence ``cos_i`` relative to normal incidence."""
+    return fresnel_slab_transmittance(cos_i, ior) / fresnel_slab_transmittance(np.ones(1), ior)[0]
+
+
+class FresnelWeight:
+    """Incidence weight of light entering the plate; ``cache_key`` lets the forward model reuse
+    it across parameter changes (it depends on geometry and the refractive index only)."""
+
+    def __init__(self, ior: float):
+        self.ior = float(ior)
+        self.cache_key = ("fresnel", self.ior)
+
+    def __call__(self, cos_i):
+        return _fresnel_relative(cos_i, self.ior)
+
+
 def _diffuser_rect(ir):
     from lbscene.engine.forward_geometry import Rectangle
 
@@ -203,18 +220,19 @@ class DiffuserEffect(PhysicalEffect):
 
     @classmethod
     def path_factors(cls, ctx, p, es, rx):
-        from lbscene.engine.forward_geometry import segment_fraction_hitting
-
         ir = ctx.ir
         if ir.diffuser is None:
             return None
-        hit = segment_fraction_hitting(es.points_mm, es.half_step, rx, _diffuser_rect(ir))
+        hit = ctx.fraction_hitting(es, rx, _diffuser_rect(ir))
         if not hit.any():
             return None
-        d = rx[:, None, :] - es.points_mm[None, :, :]
-        cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-        t0 = fresnel_slab_transmittance(np.ones(1), ir.diffuser.ior)[0]
-        ang = fresnel_slab_transmittance(cos_i, ir.diffuser.ior) / t0
+
+        def angular():
+            d = rx[:, None, :] - es.points_mm[None, :, :]
+            cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+            return _fresnel_relative(cos_i, ir.diffuser.ior)
+
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior]), angular)
         fd = _diffuser_fraction(ir, p)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", cls._spectrum(ctx, p)),
@@ -246,9 +264,7 @@ class DiffuserEffect(PhysicalEffect):
         top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
         up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
         # light arriving on the top side: cos-weighted and reduced by the Fresnel angular factor
-        terms = direct(top, up, exclude=(cls.id,), incidence_weight=lambda cos_i: (
-            fresnel_slab_transmittance(cos_i, d.ior)
-            / fresnel_slab_transmittance(np.ones(1), d.ior)[0]))
+        terms = direct(top, up, exclude=(cls.id,), incidence_weight=FresnelWeight(d.ior))
         T = cls._spectrum(ctx, p)
         exit_, descr = [], []
         for t in terms:
@@ -305,8 +321,6 @@ class ApertureOcclusionEffect(PhysicalEffect):
 
     @staticmethod
     def path_factors(ctx, p, es, rx):
-        from lbscene.engine.forward_geometry import segment_fraction_hitting
-
         key = ("occ", p.opening_scale, tuple(p.occluders or ()))
         rects = ctx.cache.get(key)
         if rects is None:
@@ -315,7 +329,7 @@ class ApertureOcclusionEffect(PhysicalEffect):
         for o, rect in rects:
             if o.lamps is not None and es.lamp_id not in o.lamps:
                 continue
-            b = segment_fraction_hitting(es.points_mm, es.half_step, rx, rect)
+            b = ctx.fraction_hitting(es, rx, rect)
             # several occluders on one path: the blocked fractions combine as independent
             blocked = b if blocked is None else 1.0 - (1.0 - blocked) * (1.0 - b)
         if blocked is None or not blocked.any():
@@ -493,17 +507,15 @@ class ReflectorEffect(PhysicalEffect):
 
     @staticmethod
     def path_factors(ctx, p, es, rx):
-        from lbscene.engine.forward_geometry import segment_fraction_hitting
-
         lamp = ctx.ir.lamp(es.lamp_id)
         if not lamp.reflector or not _selected(p, lamp.id) or lamp.reflector not in ctx.ir.reflectors:
             return None
         if es.tag.startswith("image:"):
             # the image shines only through the mirror's extent
             rect = es.meta["mirror"]
-            return [PathChannel(segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))]
+            return [PathChannel(ctx.fraction_hitting(es, rx, rect))]
         rect = _mirror_rect(ctx.ir, lamp, ctx.ir.reflectors[lamp.reflector])
-        blocked = segment_fraction_hitting(es.points_mm, es.half_step, rx, rect)
+        blocked = ctx.fraction_hitting(es, rx, rect)
         if not blocked.any():
             return None
         return [PathChannel(1.0 - blocked)]

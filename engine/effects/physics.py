@@ -123,6 +123,35 @@ class ForwardContext:
 
         return effect_params(get_effect(effect_id), self.effects.get(effect_id, {}))
 
+    def memo(self, name: str, key_arrays: tuple, compute, *, limit: int = 512):
+        """``compute()`` cached under ``name`` + the content of ``key_arrays``.
+
+        For geometry-only intermediate results (occlusion fractions, Fresnel factors): a
+        fit changes intensities, σ, fractions… but never the geometry, so every model of
+        the fit (they share ``cache``) computes them once.
+        """
+        from lbscene.engine.forward import array_key
+
+        store = self.cache.setdefault("_memo", {})
+        k = (name, array_key(*[np.asarray(a, float) for a in key_arrays]))
+        hit = store.get(k)
+        if hit is None:
+            hit = compute()
+            if len(store) >= limit:
+                store.pop(next(iter(store)))
+            store[k] = hit
+        return hit
+
+    def fraction_hitting(self, es: "EmitterSet", rx: np.ndarray, rect) -> np.ndarray:
+        """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`."""
+        from lbscene.engine.forward_geometry import segment_fraction_hitting
+
+        half = es.half_step if es.half_step is not None else np.zeros(3)
+        hole = rect.hole_half if rect.hole_half is not None else (-1.0, -1.0)
+        return self.memo("hit", (es.points_mm, half, rx, rect.centre, rect.normal, rect.u,
+                                 rect.half, hole),
+                         lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
+
 
 def effect_params(cls, params: dict | None):
     """Validated ``Params`` instance of an effect class (cached by value)."""
