@@ -112,6 +112,14 @@ def _colno(row: list[str], col: int) -> int:
     return sum(len(c) + 1 for c in row[:col]) + 1
 
 
+def _shown(doc, spec, fallback: str) -> str:
+    """Where messages about a spectrum point: its file as the user can open it, else the field."""
+    from .load import display_path
+
+    raw = getattr(spec, "path", None)
+    return display_path(doc.resolve(raw)) if raw else fallback
+
+
 def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
                          default_orientation: str = "up", interior=None) -> tuple[IlluminanceData, list[Diagnostic]]:
     """Read one illuminance CSV; return the data and *all* problems found (errors)."""
@@ -344,7 +352,7 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                 continue
             try:
                 vals = evaluate_spectrum(spec, doc.resolve, "reflectance",
-                                         display=getattr(spec, "path", f"surface_reflectances.{mid}"))
+                                         display=_shown(doc, spec, f"surface_reflectances.{mid}"))
             except LbsceneUserError as exc:
                 bag.extend(exc.diagnostics)
                 continue
@@ -362,7 +370,7 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
     ill = None
     parts = []
     for i, f in enumerate(m.illuminance):
-        data, diags = read_illuminance_csv(doc.resolve(f.path), f.path, default_z_mm=f.z_mm,
+        data, diags = read_illuminance_csv(doc.resolve(f.path), display_path(doc.resolve(f.path)), default_z_mm=f.z_mm,
                                            default_orientation=f.orientation, interior=ir.interior)
         bag.extend(diags)
         parts.append(data)
@@ -390,10 +398,10 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
         wt = m.white_tile
         try:
             spec = _tile_column(wt.radiance, doc.resolve)
-            disp = getattr(spec, "path", "white_tile.radiance")
+            disp = _shown(doc, spec, "white_tile.radiance")
             rad = evaluate_spectrum(spec, doc.resolve, "emission", display=disp)
             refl = evaluate_spectrum(wt.reflectance, doc.resolve, "reflectance",
-                                     display=getattr(wt.reflectance, "path", "white_tile.reflectance"))
+                                     display=_shown(doc, wt.reflectance, "white_tile.reflectance"))
         except LbsceneUserError as exc:
             bag.extend(exc.diagnostics)
         else:
