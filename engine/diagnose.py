@@ -34,7 +34,7 @@ Verdict:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -214,7 +214,7 @@ def effects_snippet(effects: dict, highlight: str | None = None) -> str:
 # --------------------------------------------------------------------------- diagnosis
 
 #: Enabled effects' parameters are refitted jointly with each candidate only when changing one
-#: costs less than this per forward evaluation (seconds, measured).
+#: costs less than this per forward evaluation (seconds, from the effect's ``refit_cost_s`` model).
 MAX_JOINT_REFIT_COST_S = 0.15
 
 
@@ -333,6 +333,10 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     base_free = list(base_problem.free) + joint
     base_fp = FitProblem(meas, effects, base_free, noise.percent, noise.spectral_percent, cache)
     base = base_fp.solve()
+    # every candidate refit starts from the base solution: the candidate's own parameters are the
+    # only ones far from their optimum, so the refits need a few iterations instead of dozens
+    base_free = [replace(fp, initial=float(np.clip(base.values.get(fp.target, fp.initial), *fp.bounds)))
+                 for fp in base_free]
     n = base.n_residuals
     logn = math.log(max(n, 2))
     base_bic = base.chi2 + len(base_free) * logn
@@ -424,12 +428,11 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
                 f"after adding it the residual is still above the noise (χ²/dof = "
                 f"{best.fit.chi2 / best.fit.dof:.2f}): add it, run compare again — another effect "
                 "may be missing too")
-        # the booth's own numerical settings (e.g. a finer radiosity mesh) go back into the snippet
-        eff = {k: dict(v) for k, v in best.fit.effects.items()}
-        for k, v in booth_effects.items():
-            for name, val in (v or {}).items():
-                if effects.get(k, {}).get(name) != val:
-                    eff[k][name] = val
+        # the suggestion is minimal: the booth's effects exactly as declared plus the new one with
+        # its fitted parameters.  The joint refit of the enabled effects' parameters is there to
+        # score candidates fairly; a 55-point grid rarely pins those values, so they stay the user's.
+        eff = {k: dict(v or {}) for k, v in booth_effects.items()}
+        eff[best.effect] = dict(best.params)
         d.snippet = effects_snippet(eff, highlight=best.effect)
     if base.spectral_rmse_percent is not None and d.verdict.startswith(("missing", "ambiguous")):
         sp = [s for s in tied if s.spectral_rmse_after is not None]

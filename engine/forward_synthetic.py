@@ -15,6 +15,7 @@ Examples
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -92,7 +93,8 @@ def synthesize(booth, out_dir, *, lighting: str, truth_effects: dict, points=Non
         Path(__file__).resolve().parents[1] / "schemas" / "json" / "measurement_set.schema.json",
         out.resolve()),
         "version: 1", "kind: measurement_set",
-        f"name: {name or 'synthetic measurements'}",
+        # JSON strings are valid YAML scalars: names may hold ': ' or '#'
+        f"name: {json.dumps(name or 'synthetic measurements', ensure_ascii=False)}",
         f"booth: {rel}", f"lighting: {lighting}",
         "provenance: {status: synthetic, source: \"lbscene " + provider + " truth, effects: " +
         (", ".join(sorted(truth_effects)) or "none") + "\"}"]

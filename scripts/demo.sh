@@ -1,18 +1,18 @@
 #!/usr/bin/env bash
-# The main job on a shipped booth: validate every shipped file, then build the SpectraLight QC.
-# Grows with the project (compare, render) as those commands land.
+# The main job on the shipped booths: validate every shipped file, build the SpectraLight QC, run the
+# measurement loop on the shipped example measurements (compare, add the missing effect, compare again,
+# history plot) and render a sample in the booth.  Everything goes to build/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export PYOPENGL_PLATFORM="${PYOPENGL_PLATFORM:-egl}"
 LB=.venv/bin/lbscene
 BOOTH=booths/xrite-spectralight-qc
 echo "== validate-config booths/ displays/ examples/"
-targets=(booths)
-for d in displays examples; do [ -d "$d" ] && ls "$d"/*.yaml "$d"/*/*.yaml >/dev/null 2>&1 && targets+=("$d"); done
-$LB validate-config "${targets[@]}"
+$LB validate-config booths displays examples
 echo "== build $BOOTH"
 $LB build "$BOOTH" --out build/xrite-spectralight-qc
-if [ -f examples/walkthrough-spectralight-d65/measurements.yaml ] && $LB --help | grep -q compare; then
-  echo "== compare the shipped example measurements"
-  $LB compare examples/walkthrough-spectralight-d65/measurements.yaml --report build/compare-report.html
-fi
-echo "demo finished: see build/"
+echo "== measurement loop: examples/walkthrough-spectralight-d65"
+bash examples/walkthrough-spectralight-d65/run.sh
+echo "== render a ColorChecker patch in the SpectraLight QC under D65"
+$LB render examples/render/splqc-d65-moderate-red.yaml -o build/demo-render.png
+echo "demo finished: see build/ (walkthrough/report-*.html, walkthrough/history.png, demo-render.png)"

@@ -1,4 +1,5 @@
-"""``lbscene compare MEASUREMENTS [--booth FILE] [--fit/--no-fit] [--format text|json] [--report OUT.html]``"""
+"""``lbscene compare MEASUREMENTS [--booth FILE] [--fit/--no-fit] [--format text|json] [--report OUT.html]
+[--json-out OUT.json]``"""
 
 from __future__ import annotations
 
@@ -112,6 +113,8 @@ def register(app: typer.Typer) -> None:
                                  "compare the booth as declared."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
         report: Optional[Path] = typer.Option(None, "--report", help="Write a self-contained HTML report."),
+        json_out: Optional[Path] = typer.Option(None, "--json-out", help="Also write the JSON result to "
+                                                "this file (whatever --format prints)."),
         diagnose: bool = typer.Option(True, "--diagnose/--no-diagnose",
                                       help="Refit with each missing effect and give a verdict."),
         history: bool = typer.Option(True, "--history/--no-history",
@@ -133,11 +136,17 @@ def register(app: typer.Typer) -> None:
             from lbscene.engine.report import write_report
 
             write_report(res, report)
-        if format is Format.json:
+        if format is Format.json or json_out is not None:
             out = res.to_json()
             if report is not None:
                 out["report"] = str(report)
-            typer.echo(json.dumps(out, indent=2, ensure_ascii=False))
+            text = json.dumps(out, indent=2, ensure_ascii=False)
+            if json_out is not None:
+                from lbscene.engine.atomic import write_atomic
+
+                write_atomic(json_out, text + "\n")
+        if format is Format.json:
+            typer.echo(text)
         else:
             print_text(res, Console())
             if report is not None:
