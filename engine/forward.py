@@ -366,7 +366,13 @@ class ForwardModel:
         g0, cos_rx, theta = self._pair_geometry(es, P, N)
         base = es.weights[None, :] * g0
         if es.shape is not None:
-            base = base * es.shape(theta)
+            # declared profiles (cosⁿ, IES) never change during a fit: reuse their values; a fitted
+            # σ makes a new shape at every step, hence the small bound
+            data = getattr(es.shape, "data", None)        # IES tables: key by content, not repr
+            name = f"shape:{type(es.shape).__name__}" if data is not None else f"shape:{es.shape!r}"
+            extra = (data.vertical_deg, data.horizontal_deg, data.candela) if data is not None else ()
+            base = base * self.ctx.memo(name, (es.points_mm, P, N, es.aim, *extra),
+                                        lambda: es.shape(theta), limit=16)
         resp = self._response(cos_rx, meter)
         if resp is not None:
             base = base * resp

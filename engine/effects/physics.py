@@ -132,7 +132,8 @@ class ForwardContext:
         """
         from lbscene.engine.forward import array_key
 
-        store = self.cache.setdefault("_memo", {})
+        # one store per kind, each with its own bound: arrays of (receivers × emitters) add up
+        store = self.cache.setdefault(("_memo", name.split(":", 1)[0]), {})
         k = (name, array_key(*[np.asarray(a, float) for a in key_arrays]))
         hit = store.get(k)
         if hit is None:
