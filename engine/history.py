@@ -78,34 +78,43 @@ def append_history(path: Path, entry: dict) -> dict:
 
 
 def plot_history(entries: list[dict], ax=None, title: str = ""):
-    """Error per step (RMSE %, and the noise level), each step labelled with what changed."""
+    """Error per step (RMSE %, and the noise level), each step labelled with what changed.
+
+    Linear axis from 0 so the fall reads as it is; what changed is written under each step
+    (wrapped), the RMSE above each point.
+    """
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     if ax is None:
-        fig, ax = plt.subplots(figsize=(7.5, 3.6), dpi=110)
+        fig, ax = plt.subplots(figsize=(max(5.0, 1.9 * len(entries) + 2.0), 4.2), dpi=110)
     else:
         fig = ax.figure
     steps = [e.get("step", i + 1) for i, e in enumerate(entries)]
-    rmse = [e.get("rmse_percent") for e in entries]
+    rmse = [float("nan") if e.get("rmse_percent") is None else e["rmse_percent"] for e in entries]
     noise = [e.get("noise_percent_estimate") for e in entries]
-    ax.plot(steps, rmse, "o-", color="#1f5fa8", label="RMSE %")
+    ax.plot(steps, rmse, "o-", color="#1f5fa8", label="illuminance RMSE %")
     if any(n is not None for n in noise):
         ax.plot(steps, [n if n is not None else float("nan") for n in noise], "--", color="0.5",
-                label="noise %")
-    for s, r, e in zip(steps, rmse, entries):
-        if r is None:
-            continue
-        ax.annotate(e.get("label", ""), (s, r), textcoords="offset points", xytext=(4, 6), fontsize=7,
-                    rotation=20)
-    ax.set_xlabel("step")
-    ax.set_ylabel("illuminance RMSE (%)")
-    ax.set_yscale("log")
+                label="noise % (estimate)")
+    for s_, r, n in zip(steps, rmse, noise):
+        if r == r:
+            below = n is not None and r < 1.15 * n       # keep the value off the noise line
+            ax.annotate(f"{r:.2f} %", (s_, r), textcoords="offset points", xytext=(0, -13 if below else 7),
+                        ha="center", fontsize=8)
+    top = max([v for v in rmse + [n for n in noise if n is not None] if v == v] or [1.0])
+    ax.set_ylim(0, 1.2 * top)
+    ax.set_xlim(min(steps) - 0.5, max(steps) + 0.5)
     ax.set_xticks(steps)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.set_xticklabels([f"{s_}\n" + textwrap.fill(e.get("label", ""), 24) for s_, e in zip(steps, entries)],
+                       fontsize=7)
+    ax.set_ylabel("RMSE (%)")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
     ax.set_title(title or "error per step", fontsize=10)
     fig.tight_layout()
     return fig
