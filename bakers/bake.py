@@ -10,12 +10,19 @@ half the samples and two seeds; the product is the mean and the halves'
 difference estimates its noise (:func:`lbscene.bakers.products.noise_summary`).
 The seeds are the same for every band group, so the noise of neighbouring
 bands is correlated (less colour noise) while the two halves are independent.
+
+Irradiance-points products with a noise target (the ``final`` preset: 1 %
+RMS illuminance noise) then sample on in rounds — more samples for both
+halves, new seeds, sample-weighted means — until the two-half estimate
+meets the target or the preset's sample cap; the manifest gives the samples
+used and the rounds.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import platform
 import time
@@ -34,6 +41,10 @@ MANIFEST_NAME = "manifest.json"
 PRODUCTS_KIND = "lbscene.bake_products"
 #: second half-render seed = seed + SEED_OFFSET
 SEED_OFFSET = 7919
+#: adaptive sampling of points products stops after this many extra rounds
+MAX_NOISE_ROUNDS = 3
+#: extra rounds aim this much below the target (the two-half estimate is itself noisy)
+NOISE_MARGIN = 1.2
 #: test hook: hard-exit after writing this many product files (simulates a crash)
 _CRASH_ENV = "LBSCENE_BAKE_CRASH_AFTER_PRODUCTS"
 
@@ -62,6 +73,16 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _illuminance_noise_rms(parts: list[np.ndarray], w_v: np.ndarray) -> float:
+    """RMS over points of the relative two-half noise of their illuminance."""
+    ea, eb = parts[0] @ w_v, parts[1] @ w_v
+    y = 0.5 * (ea + eb)
+    ok = y > 0
+    if not ok.any():
+        return 0.0
+    return float(np.sqrt(np.mean((0.5 * np.abs(ea - eb)[ok] / y[ok]) ** 2)))
+
+
 def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
              save_blend: bool = True) -> dict:
     """Bake every product of ``job`` into ``out_dir`` (created); returns the manifest."""
@@ -87,7 +108,9 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
     noise_on = job.quality.noise_estimate
     seed_a = job.quality.seed
     seed_b = seed_a + SEED_OFFSET
+    w_v = band_photopic_weights(job.bands)
     halves: dict[str, list[np.ndarray]] = {}
+    counts: dict[str, list[int]] = {}
     timings = {p.id: 0.0 for p in job.products}
     for g in groups:
         scene.set_band_group(g)
@@ -98,6 +121,7 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
             runs = [(s // 2, seed_a), (s - s // 2, seed_b)] if noise_on else [(s, seed_a)]
             if p.id not in halves:
                 halves[p.id] = [np.zeros(_shape(job, p) + (n,)) for _ in runs]
+                counts[p.id] = [ns for ns, _ in runs]
             scene.apply_group_transforms(p.group_transforms)
             try:
                 for k, (ns, seed) in enumerate(runs):
@@ -111,8 +135,47 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
             timings[p.id] += time.perf_counter() - t0
             done += 1
 
+    rounds = {}
+    for p in job.products:
+        target = job.noise_target_for(p)
+        if target is None or len(halves[p.id]) != 2:
+            continue
+        cap = job.max_samples_for(p)
+        r = 0
+        round_seeds = []
+        while r < MAX_NOISE_ROUNDS:
+            rel = _illuminance_noise_rms(halves[p.id], w_v)
+            n_now = sum(counts[p.id])
+            need = min(cap, int(math.ceil(n_now * (rel / target) ** 2 * NOISE_MARGIN)))
+            if rel <= target or need - n_now < 2:
+                break
+            r += 1
+            extra = [(need - n_now) // 2, need - n_now - (need - n_now) // 2]
+            seeds = [seed_a + 2 * r * SEED_OFFSET, seed_b + 2 * r * SEED_OFFSET]
+            round_seeds.append(seeds)
+            new = [np.zeros_like(h) for h in halves[p.id]]
+            total += len(groups)
+            t0 = time.perf_counter()
+            for g in groups:
+                step(done, total, f"{p.id}: {need} samples for {100 * target:g} % noise "
+                                  f"(now {100 * rel:.2f} %), bands {labels[g[0]]}…{labels[g[-1]]}")
+                scene.set_band_group(g)
+                scene.apply_group_transforms(p.group_transforms)
+                try:
+                    for k in range(2):
+                        new[k][..., g] = scene.bake_irradiance(p, extra[k], seeds[k])[..., : len(g)]
+                finally:
+                    scene.reset_group_transforms()
+                done += 1
+            for k in range(2):
+                c = counts[p.id][k]
+                halves[p.id][k] = (c * halves[p.id][k] + extra[k] * new[k]) / (c + extra[k])
+                counts[p.id][k] = c + extra[k]
+            timings[p.id] += time.perf_counter() - t0
+        rounds[p.id] = {"noise_target": target, "rounds": r, "max_samples": cap,
+                        "round_seeds": round_seeds}
+
     step(done, total, "write products")
-    w_v = band_photopic_weights(job.bands)
     crash_after = int(os.environ.get(_CRASH_ENV, "-1"))
     written = 0
     products = {}
@@ -122,8 +185,8 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
     for p in job.products:
         parts = halves[p.id]
         if len(parts) == 2:
-            s = job.samples_for(p)
-            wa, wb = (s // 2) / s, (s - s // 2) / s
+            ca, cb = counts[p.id]
+            wa, wb = ca / (ca + cb), cb / (ca + cb)
             data = wa * parts[0] + wb * parts[1]
             noise = noise_summary(parts[0], parts[1], w_v if p.type != "environment_map" else None)
             if p.type == "environment_map":
@@ -145,9 +208,11 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
         write_exr(out_dir / f"{p.id}.exr", image, labels, attrs)
         entry = {"type": p.type, "files": product_files(p), "units": UNITS[p.type],
                  "shape": list(image.shape), "channels": labels,
-                 "samples": job.samples_for(p),
+                 "samples": int(sum(counts[p.id])),
                  "seeds": [seed_a, seed_b] if noise_on else [seed_a],
                  "time_s": round(timings[p.id], 3), "noise": noise}
+        if p.id in rounds:
+            entry["adaptive_sampling"] = rounds[p.id]
         if p.type != "environment_map":
             entry["light_paths"] = p.light_paths
         if p.type == "irradiance_points":

@@ -14,6 +14,26 @@ Two comparisons at measurement points (default: the seed's 55-point grid):
 Both ignore the meter (``detector_cosine_error``): Cycles' sensors are ideal
 cosine receivers.  The report gives, per point, the spectral and photometric
 ratio Cycles/model and the bake's own noise estimate.
+
+For inter-reflection Cycles traces up to :data:`CONVERGED_BOUNCES` bounces
+(the model solves its radiosity to convergence) unless the booth bounds the
+model's ``max_bounces``.
+
+A check *passes* when every point agrees within the tolerance
+(:data:`TOLERANCE_PERCENT`: 2 % direct, 3 % with inter-reflection) plus four
+times the bake's RMS noise, so a noisy preview bake does not fail for its
+noise alone; at final quality (≤ 1 % noise) the tolerance dominates.
+
+Examples
+--------
+>>> from lbscene.engine.compile import compile_booth                       # doctest: +SKIP
+>>> ir = compile_booth("booths/iso3664-p1-d50")                            # doctest: +SKIP
+>>> [(c.mode, round(c.summary()["mean_diff_percent"], 1))                   # doctest: +SKIP
+...  for c in cross_check_all(ir, "P1", quality="final")]
+[('direct', 0.0), ('interreflection', -0.5)]
+
+The same from the command line: ``lbscene bake booths/iso3664-p1-d50 -l P1 --cross-check
+--quality final [--format json]``.
 """
 
 from __future__ import annotations
@@ -24,10 +44,18 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CrossCheck", "cross_check", "bake_points"]
+__all__ = ["CrossCheck", "cross_check", "cross_check_all", "bake_points", "MODES",
+           "TOLERANCE_PERCENT", "NOISE_SIGMAS", "CONVERGED_BOUNCES"]
 
 #: effects the Cycles scene cannot represent at a receiver (instrument models)
 INSTRUMENT_EFFECTS = ("detector_cosine_error",)
+MODES = ("direct", "interreflection")
+#: agreement the issue asks for at final quality, per mode (percent of the model's illuminance)
+TOLERANCE_PERCENT = {"direct": 2.0, "interreflection": 3.0}
+#: a point may also differ by this many RMS noise sigmas of the bake
+NOISE_SIGMAS = 4.0
+#: Cycles' path depth for the inter-reflection check (the model solves to convergence)
+CONVERGED_BOUNCES = 64
 
 
 @dataclass
@@ -45,9 +73,25 @@ class CrossCheck:
     time_s: float
     effects: list[str] = field(default_factory=list)
 
+    max_bounces: int | None = None
+
     @property
     def ratio(self) -> np.ndarray:
         return self.cycles_lx / self.model_lx
+
+    @property
+    def noise_rms(self) -> float:
+        """RMS over the points of the bake's relative illuminance noise."""
+        return float(np.sqrt(np.mean(np.asarray(self.noise_rel, float) ** 2)))
+
+    @property
+    def tolerance_percent(self) -> float:
+        """Allowed |Cycles/model − 1| per point: the mode's tolerance + NOISE_SIGMAS × noise."""
+        return TOLERANCE_PERCENT[self.mode] + NOISE_SIGMAS * 100.0 * self.noise_rms
+
+    @property
+    def passed(self) -> bool:
+        return bool(np.all(np.abs(100.0 * (self.ratio - 1.0)) <= self.tolerance_percent))
 
     def summary(self) -> dict:
         d = 100.0 * (self.ratio - 1.0)
@@ -57,11 +101,14 @@ class CrossCheck:
                                axis=0)
         return {"booth": self.booth, "lighting": self.lighting, "mode": self.mode,
                 "points": int(len(self.points_mm)), "samples": self.samples,
+                "max_bounces": self.max_bounces,
                 "time_s": round(self.time_s, 2), "effects": self.effects,
                 "mean_diff_percent": round(float(d.mean()), 3),
                 "rms_diff_percent": round(float(np.sqrt(np.mean(d ** 2))), 3),
                 "max_abs_diff_percent": round(float(np.abs(d).max()), 3),
-                "noise_rms_percent": round(float(100 * np.sqrt(np.mean(self.noise_rel ** 2))), 3),
+                "noise_rms_percent": round(100 * self.noise_rms, 3),
+                "tolerance_percent": round(self.tolerance_percent, 3),
+                "passed": self.passed,
                 "mean_model_lx": round(float(self.model_lx.mean()), 2),
                 "mean_cycles_lx": round(float(self.cycles_lx.mean()), 2),
                 "band_mean_diff_percent": [None if not np.isfinite(x) else round(float(x), 2)
@@ -103,8 +150,14 @@ def bake_points(ir, lighting: str, points, normals=None, *, effects=None, surfac
 
 def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals=None,
                 quality: str = "preview", samples: int | None = None, effects=None,
-                out_dir: Path | None = None, progress: bool = False) -> CrossCheck:
-    """Compare Cycles with :class:`lbscene.engine.forward.ForwardModel` at points."""
+                out_dir: Path | None = None, progress: bool = False,
+                max_bounces: int | None = None) -> CrossCheck:
+    """Compare Cycles with :class:`lbscene.engine.forward.ForwardModel` at points.
+
+    ``max_bounces`` (Cycles' path depth) defaults to the quality preset's for
+    ``direct`` (irrelevant there) and, for ``interreflection``, to the model's
+    own bound when the booth sets one, else :data:`CONVERGED_BOUNCES`.
+    """
     import time
 
     from lbscene.engine.forward import ForwardModel
@@ -120,6 +173,10 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
         surfaces = "black"
     elif mode == "interreflection":
         surfaces = "actual"
+        if max_bounces is None:
+            bound = int((eff.get("interreflection") or {}).get("max_bounces", 0) or 0)
+            # the model counts reflections at surfaces; Cycles' depth also counts the sensor's
+            max_bounces = bound + 1 if bound > 0 else CONVERGED_BOUNCES
     else:
         raise ValueError(f"unknown cross-check mode {mode!r}")
     P = grid_points(ir) if points is None else np.atleast_2d(np.asarray(points, float))
@@ -128,11 +185,22 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
     t0 = time.perf_counter()
     bands, lux, noise, manifest = bake_points(
         ir, lighting, P, N, effects=eff, surfaces=surfaces, quality=quality, samples=samples,
-        out_dir=out_dir, progress=progress)
+        out_dir=out_dir, progress=progress, max_bounces=max_bounces)
     elapsed = time.perf_counter() - t0
     fm = ForwardModel(ir, lighting, effects=eff)
     model_bands = np.asarray(fm.spectral_irradiance_bands(P, N), float)
     # the same photometric weights on both sides: the comparison is of the transport
     w = band_photopic_weights(ir.grid)
     return CrossCheck(ir.booth_name, lighting, mode, P, lux, model_bands @ w, bands, model_bands, noise,
-                      manifest["products"]["points"]["samples"], elapsed, sorted(eff))
+                      manifest["products"]["points"]["samples"], elapsed, sorted(eff),
+                      manifest.get("quality", {}).get("max_bounces", max_bounces))
+
+
+def cross_check_all(ir, lighting: str, *, modes=MODES, **kw) -> list[CrossCheck]:
+    """:func:`cross_check` in each mode (``interreflection`` only when the booth enables it)."""
+    out = []
+    for mode in modes:
+        if mode == "interreflection" and "interreflection" not in (kw.get("effects") or ir.effects):
+            continue
+        out.append(cross_check(ir, lighting, mode=mode, **kw))
+    return out

@@ -43,19 +43,21 @@ from typing import Iterable, Literal
 
 import numpy as np
 
-from .job import (AreaEmitter, BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
+from .job import (BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
                   GaussianProfile, IrradianceMapProduct, IrradiancePointsProduct, IsotropicProfile,
                   JobMaterial, JobMesh, MeasurementPoint, PointEmitters, Quality, RigidTransform,
                   TableProfile, TransmissiveSheet, Window, save_job)
 
 __all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
-           "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP"]
+           "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP", "OCCLUDER_OFFSET_MM"]
 
 #: environment map width (px) per quality preset
 ENV_WIDTH = {"preview": 128, "final": 256}
 #: floor map cell size (mm) per quality preset
 MAP_CELL_MM = {"preview": 50.0, "final": 25.0}
 LUMINAIRE_GROUP = "luminaire"
+#: occluders are drawn this far along their normal (mm), off any coplanar mesh face
+OCCLUDER_OFFSET_MM = 0.1
 BLACK = "lbscene_black"
 
 
@@ -215,7 +217,12 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             hole = None
             if o.type == "aperture_plate" and o.opening_mm is not None:
                 hole = (min(o.opening_mm[0] * scale / 2, half[0]), min(o.opening_mm[1] * scale / 2, half[1]))
-            v, t = _rect_quads(o.centre_mm, o.normal, o.u_axis, half, hole)
+            # drawn a hair to the side the normal points to (away from the lamps it shades): an
+            # occluder often coincides with a face of a luminaire mesh (BYK: the aperture plate is
+            # the cavity's front face) and two coplanar faces z-fight in Cycles, so random parts
+            # of the cavity's white inside would turn the plate's black
+            c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * np.asarray(o.normal, float)
+            v, t = _rect_quads(c, o.normal, o.u_axis, half, hole)
             meshes.append(JobMesh(id=_jid(f"occluder.{o.id}"), material=mat(o.material), vertices_mm=v,
                                   triangles=t, role="occluder", group=lum_group))
             if o.lamps is not None and on - set(o.lamps):

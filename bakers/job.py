@@ -497,19 +497,33 @@ Product = Annotated[Union[EnvironmentMapProduct, IrradianceMapProduct, Irradianc
 
 
 class QualityPreset(StrictModel):
-    """Samples per product kind and light-path depth."""
+    """Samples per product kind and light-path depth.
+
+    ``points_noise_target``: irradiance-points products (the grid, measurement
+    points) keep sampling, in rounds, until the RMS relative noise of their
+    illuminance is at most this (two-half estimate), up to
+    ``points_max_samples`` samples; ``None``: a fixed ``points`` samples.
+    """
 
     points: int
     map: int
     environment: int
     max_bounces: int
+    points_noise_target: float | None = None
+    points_max_samples: int | None = None
 
 
-#: preview: one lighting of a booth in well under a minute on 2 CPU cores;
-#: final: ≤ 1 % noise at grid points (see benchmarks/bench_bake.py).
+#: preview: one lighting of a booth in well under a minute on 2 CPU cores (8 bounces: light
+#: that bounced inside the BYK's white luminaire cavity is 2 % short of converged, 4 bounces
+#: missed 10 %, at nearly the same cost);
+#: final: ≤ 1 % noise at grid points (see benchmarks/bench_bake.py): 2048 samples are
+#: enough for open booths (~0.3 %); a white luminaire cavity lit from inside (BYK), seen by
+#: the points only through its aperture, needs ~14 000; 32 bounces: 12 left the cavity's light
+#: 0.6 % short, and a 64-bounce bake of the BYK grid took no longer than a 12-bounce one.
 QUALITY_PRESETS: dict[str, QualityPreset] = {
-    "preview": QualityPreset(points=192, map=24, environment=8, max_bounces=4),
-    "final": QualityPreset(points=2048, map=128, environment=64, max_bounces=12),
+    "preview": QualityPreset(points=192, map=24, environment=8, max_bounces=8),
+    "final": QualityPreset(points=2048, map=128, environment=64, max_bounces=32,
+                           points_noise_target=0.01, points_max_samples=32768),
 }
 
 
@@ -525,6 +539,9 @@ class Quality(StrictModel):
     #: Cycles path guiding (CPU only, unbiased): less noise from hot spots such as a lamp
     #: close to a ceiling, at some cost per sample; results then differ between CPU and GPU runs
     path_guiding: bool = False
+    #: RMS relative illuminance noise irradiance-points products sample down to (None: the
+    #: preset's ``points_noise_target``); ignored when ``samples`` fixes the samples
+    noise_target: float | None = Field(None, gt=0, lt=1)
 
 
 # --------------------------------------------------------------------------- job
@@ -619,6 +636,24 @@ class BakeJob(StrictModel):
         kind = {"environment_map": "environment", "irradiance_map": "map",
                 "irradiance_points": "points"}[product.type]
         return getattr(self.preset, kind)
+
+    def noise_target_for(self, product) -> float | None:
+        """Noise target of an irradiance-points product sampled adaptively, else None.
+
+        Only when nothing fixes its samples (no job override, no product samples) and the
+        two-half noise estimate is on.
+        """
+        if product.type != "irradiance_points" or not self.quality.noise_estimate:
+            return None
+        if self.quality.samples is not None or product.samples is not None:
+            return None
+        return self.quality.noise_target if self.quality.noise_target is not None else \
+            self.preset.points_noise_target
+
+    def max_samples_for(self, product) -> int:
+        """Upper bound of an adaptively sampled product's samples."""
+        cap = self.preset.points_max_samples
+        return max(self.samples_for(product), cap if cap is not None else 16 * self.samples_for(product))
 
     @property
     def max_bounces(self) -> int:

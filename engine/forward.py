@@ -362,9 +362,14 @@ class ForwardModel:
         store[key] = out
         return out
 
-    def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight):
+    def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight, pair_factor=None):
         g0, cos_rx, theta = self._pair_geometry(es, P, N)
         base = es.weights[None, :] * g0
+        if pair_factor is not None:
+            # caller's per-path transmission (the inter-reflection's mesh visibility)
+            f = pair_factor(es, P)
+            if f is not None:
+                base = base * f
         if es.shape is not None:
             # declared profiles (cosⁿ, IES) never change during a fit: reuse their values; a fitted
             # σ makes a new shape at every step, hence the small bound
@@ -415,14 +420,15 @@ class ForwardModel:
             out.append((es.spectral_key + key, S, geo))
         return out
 
-    def _lamp_terms(self, lamp, level, P, N, meter, exclude, incidence_weight) -> dict:
+    def _lamp_terms(self, lamp, level, P, N, meter, exclude, incidence_weight,
+                    pair_factor=None) -> dict:
         """{key: [spectrum, geo (M,)]} of one lamp at the receivers (near field refined)."""
         acc: dict = {}
 
         def add(sets, rows):
             for es in sets:
                 for key, S, geo in self._set_terms(es, P[rows], N[rows], meter[rows], exclude,
-                                                   incidence_weight):
+                                                   incidence_weight, pair_factor):
                     k = (es.tag,) + key
                     if k not in acc:
                         acc[k] = [S, np.zeros(len(P))]
@@ -451,13 +457,18 @@ class ForwardModel:
         return acc
 
     def direct_terms(self, points, normals=None, meter=None, *, exclude: Sequence[str] = (),
-                     incidence_weight=None) -> list[Term]:
-        """Straight lamp→receiver light (with every enabled path/emitter/response effect)."""
+                     incidence_weight=None, pair_factor=None) -> list[Term]:
+        """Straight lamp→receiver light (with every enabled path/emitter/response effect).
+
+        ``pair_factor(es, P)`` (optional) returns an extra ``(M, N)`` transmission of each
+        receiver ← emitter point path (or None): the inter-reflection passes the
+        visibility of its patches past the booth's meshes.
+        """
         P, N, m = as_receivers(points, normals, meter)
         out = []
         for lamp, level in self.ir.lamps_on(self.lighting):
             for key, (S, geo) in self._lamp_terms(lamp, level, P, N, m, exclude,
-                                                  incidence_weight).items():
+                                                  incidence_weight, pair_factor).items():
                 out.append(Term(lamp.group, lamp.id, key, S, geo, None, "direct"))
         return out
 
@@ -497,10 +508,13 @@ class ForwardModel:
             F = F * self._response(cos_i, meter)
         return F
 
-    def first_order_terms(self, points, normals=None, meter=None) -> list[Term]:
-        """Direct light plus light from secondary (diffusely re-emitting) sources."""
+    def first_order_terms(self, points, normals=None, meter=None, *, pair_factor=None) -> list[Term]:
+        """Direct light plus light from secondary (diffusely re-emitting) sources.
+
+        ``pair_factor``: see :meth:`direct_terms` (applied to the lamps' direct light only).
+        """
         P, N, m = as_receivers(points, normals, meter)
-        terms = self.direct_terms(P, N, m)
+        terms = self.direct_terms(P, N, m, pair_factor=pair_factor)
         for src in self.secondary_sources():
             F = self.lambertian_gather(src.polys, src.normals, P, N, m)
             geo = F @ src.exitance                               # (M, K)

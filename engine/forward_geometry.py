@@ -10,6 +10,9 @@ Geometry kernels of the analytic forward model (vectorised numpy, millimetres).
   midpoint subdivision).
 * :func:`segment_hits_rectangle`: which lamp→receiver segments cross a
   rectangle (occluders, mirrors, the diffuser plate).
+* :func:`segments_blocked` / :func:`visibility_matrix`: which segments a
+  triangle mesh blocks (luminaire cavities and other meshes in the
+  inter-reflection's visibility).
 
 Examples
 --------
@@ -36,10 +39,14 @@ __all__ = [
     "Patches",
     "mesh_patches",
     "quad_subpoints",
+    "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
     "polygon_form_factor_pairs",
     "Rectangle",
+    "mesh_triangles",
+    "segments_blocked",
+    "visibility_matrix",
 ]
 
 _EPS = 1e-12
@@ -214,6 +221,28 @@ def quad_subpoints(polys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return pts, w
 
 
+def quad_r2_points(polys: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` low-discrepancy points in each quad (R2 sequence, bilinear map): ``(P, n, 3)``,
+    weights ``(P, n)`` (Jacobian, summing to 1).
+
+    Unlike a regular k × k grid they are not aligned with the quad's edges, so a
+    visibility edge parallel to them (an aperture's edge seen on cavity patches
+    cut along the same axes) does not bias every partly seen patch the same way.
+    """
+    g = 1.32471795724474602596                      # plastic number: R2 sequence
+    k = np.arange(n) + 0.5
+    u = (k / g) % 1.0
+    v = (k / (g * g)) % 1.0
+    p0, p1, p2, p3 = (polys[:, i][:, None, :] for i in range(4))
+    U, V = u[None, :, None], v[None, :, None]
+    pts = (1 - U) * (1 - V) * p0 + U * (1 - V) * p1 + U * V * p2 + (1 - U) * V * p3
+    du = (1 - V) * (p1 - p0) + V * (p2 - p3)
+    dv = (1 - U) * (p3 - p0) + U * (p2 - p1)
+    w = np.linalg.norm(np.cross(du, dv), axis=2)
+    w = w / np.maximum(w.sum(axis=1, keepdims=True), _EPS)
+    return pts, w
+
+
 def _grid_quad(p0, p1, p2, p3, nu, nv):
     u = np.linspace(0.0, 1.0, nu + 1)
     v = np.linspace(0.0, 1.0, nv + 1)
@@ -229,17 +258,66 @@ def _grid_quad(p0, p1, p2, p3, nu, nv):
 
 
 def _split_triangle(tri: np.ndarray, max_edge: float) -> list[np.ndarray]:
+    """Split until every edge is ≤ ``max_edge``: 4-way midpoint subdivision of well-shaped
+    triangles, bisection of the longest edge of thin ones (a 4-way split of a 600 × 50 mm
+    sliver would make hundreds of slivers)."""
     out, todo = [], [tri]
     while todo:
         t = todo.pop()
-        e = max(np.linalg.norm(t[1] - t[0]), np.linalg.norm(t[2] - t[1]), np.linalg.norm(t[0] - t[2]))
+        el = [np.linalg.norm(t[1] - t[0]), np.linalg.norm(t[2] - t[1]), np.linalg.norm(t[0] - t[2])]
+        e = max(el)
         if e <= max_edge or len(out) + len(todo) > 20000:
             out.append(t)
             continue
         a, b, c = t
+        if e > 2.0 * min(el):
+            k = int(np.argmax(el))
+            p, q, r = (a, b, c) if k == 0 else (b, c, a) if k == 1 else (c, a, b)
+            m = (p + q) / 2
+            todo.extend([np.array([p, m, r]), np.array([m, q, r])])
+            continue
         ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
         todo.extend([np.array([a, ab, ca]), np.array([ab, b, bc]), np.array([ca, bc, c]),
                      np.array([ab, bc, ca])])
+    return out
+
+
+def _mesh_faces(v: np.ndarray, t: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """A mesh's faces: triangle pairs that share an edge and form a parallelogram (a
+    triangulated OBJ/USD quad, in any triangle order) as ``('quad', corners (4, 3))`` wound
+    like the triangles, the rest as ``('tri', (3, 3))``."""
+    v = np.asarray(v, float)
+    t = np.asarray(t, int)
+    edges: dict = {}
+    for k, tri in enumerate(t):
+        for e in range(3):
+            edges.setdefault(frozenset((int(tri[e]), int(tri[(e + 1) % 3]))), []).append(k)
+    used = np.zeros(len(t), bool)
+    out = []
+    for k, tri in enumerate(t):
+        if used[k]:
+            continue
+        used[k] = True
+        quad = None
+        for e in range(3):
+            x, y, r = int(tri[e]), int(tri[(e + 1) % 3]), int(tri[(e + 2) % 3])
+            # shared edge x→y, r opposite: quad (y, r, x, s) keeps this triangle's winding
+            for j in edges[frozenset((x, y))]:
+                if used[j] or j == k:
+                    continue
+                tj = [int(i) for i in t[j]]
+                sj = next(i for i in tj if i not in (x, y))
+                # consistent winding: the neighbour runs the shared edge y→x
+                pos = tj.index(y)
+                if tj[(pos + 1) % 3] != x:
+                    continue
+                scale = max(1.0, float(np.abs(v[[x, y, r, sj]]).max()))
+                if np.linalg.norm(v[r] + v[sj] - v[x] - v[y]) <= 1e-9 * scale:
+                    quad, used[j] = np.array([v[y], v[r], v[x], v[sj]]), True
+                    break
+            if quad is not None:
+                break
+        out.append(("quad", quad) if quad is not None else ("tri", v[tri]))
     return out
 
 
@@ -271,9 +349,15 @@ def mesh_patches(ir, patch_size_mm: float, roles=("floor", "ceiling", "left_wall
             q = _grid_quad(p0, p1, p2, p3, nu, nv)
         else:
             qs = []
-            for tri in t:
-                for sub in _split_triangle(v[tri], patch_size_mm * 1.5):
-                    qs.append(np.array([sub[0], sub[1], sub[2], sub[2]]))
+            for kind, corners in _mesh_faces(v, t):
+                if kind == "quad":
+                    p0, p1, p2, p3 = corners
+                    nu = max(1, int(np.ceil(np.linalg.norm(p1 - p0) / patch_size_mm - 1e-9)))
+                    nv = max(1, int(np.ceil(np.linalg.norm(p3 - p0) / patch_size_mm - 1e-9)))
+                    qs.extend(_grid_quad(p0, p1, p2, p3, nu, nv))
+                else:
+                    for sub in _split_triangle(corners, patch_size_mm * 1.5):
+                        qs.append(np.array([sub[0], sub[1], sub[2], sub[2]]))
             q = np.array(qs).reshape(-1, 4, 3)
         polys.append(q)
         mats += [s.material] * len(q)
@@ -391,3 +475,100 @@ def segment_fraction_hitting(src: np.ndarray, half_step: np.ndarray | None, dst:
         mid = segment_hits_rectangle(src, dst, rect).astype(float)
         out = np.where(mixed, mid, out)
     return np.clip(out, 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- mesh visibility
+
+def mesh_triangles(ir, roles=("mesh",)) -> np.ndarray:
+    """``(T, 3, 3)`` triangles (mm) of the IR surfaces with these roles (default: meshes)."""
+    tris = [s.vertex_array[s.triangle_array] for s in ir.surfaces if s.role in roles]
+    return np.concatenate(tris).astype(float) if tris else np.zeros((0, 3, 3))
+
+
+def _segments_hit_box(a: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Slab test: does the segment ``a + t·d``, t ∈ [0, 1], meet the box [lo, hi]?"""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = 1.0 / d
+        t1 = (lo - a) * inv
+        t2 = (hi - a) * inv
+    # d = 0 on an axis: ±inf bounds (inside the slab: no constraint; outside: both the same
+    # infinity, a miss); fmin/fmax skip the NaN of a point exactly on a (padded) face
+    t0 = np.maximum(np.fmin(t1, t2).max(axis=1), 0.0)
+    t9 = np.minimum(np.fmax(t1, t2).min(axis=1), 1.0)
+    return t0 <= t9
+
+
+def segments_blocked(a: np.ndarray, b: np.ndarray, tris: np.ndarray, *, t_eps: float = 1e-9,
+                     chunk: int = 200_000) -> np.ndarray:
+    """Boolean ``(K,)``: does any triangle of ``tris`` ``(T, 3, 3)`` cross segment ``a[k]→b[k]``?
+
+    After a bounding-box cull, per triangle: the segments whose ends lie on
+    opposite sides of its plane, crossing it at ``t`` ∈ (``t_eps``, 1 − ``t_eps``),
+    inside it (barycentric test, edges inclusive).  Ends on the plane and
+    segments lying in it do not count, so points nudged off a face are not
+    blocked by that face.
+
+    >>> tri = np.array([[[-1.0, -1, 5], [1, -1, 5], [0, 1, 5]]])
+    >>> segments_blocked(np.zeros((2, 3)), np.array([[0, 0, 10.0], [5, 0, 10]]), tri).tolist()
+    [True, False]
+    """
+    a = np.atleast_2d(np.asarray(a, float))
+    b = np.atleast_2d(np.asarray(b, float))
+    out = np.zeros(len(a), bool)
+    if len(tris) == 0 or len(a) == 0:
+        return out
+    tris = np.asarray(tris, float)
+    flat = tris.reshape(-1, 3)
+    lo, hi = flat.min(axis=0) - 1e-6, flat.max(axis=0) + 1e-6
+    v0 = tris[:, 0]
+    e1 = tris[:, 1] - v0
+    e2 = tris[:, 2] - v0
+    nrm = np.cross(e1, e2)
+    d00 = np.einsum("tc,tc->t", e1, e1)
+    d01 = np.einsum("tc,tc->t", e1, e2)
+    d11 = np.einsum("tc,tc->t", e2, e2)
+    den = d00 * d11 - d01 * d01
+    live_t = den > 1e-24 * np.maximum(d00 * d11, 1e-300)          # skip degenerate triangles
+    tol = 1e-12
+    ks = np.nonzero(live_t)[0]
+    off = np.einsum("tc,tc->t", v0[ks], nrm[ks])
+    for s in range(0, len(a), chunk):
+        aa, bb = a[s:s + chunk], b[s:s + chunk]
+        cand = np.nonzero(_segments_hit_box(aa, bb - aa, lo, hi))[0]
+        if cand.size == 0:
+            continue
+        A, B = aa[cand], bb[cand]
+        # signed heights of both ends over every triangle's plane at once: (K, T)
+        DA = A @ nrm[ks].T - off
+        DB = B @ nrm[ks].T - off
+        crosses = DA * DB < 0.0
+        hit = np.zeros(cand.size, bool)
+        for j, k in enumerate(ks):
+            idx = np.nonzero(crosses[:, j] & ~hit)[0]
+            if idx.size == 0:
+                continue
+            da, db = DA[idx, j], DB[idx, j]
+            t = da / (da - db)
+            ok = (t > t_eps) & (t < 1.0 - t_eps)
+            idx, t = idx[ok], t[ok]
+            if idx.size == 0:
+                continue
+            w = A[idx] + t[:, None] * (B[idx] - A[idx]) - v0[k]
+            d20 = w @ e1[k]
+            d21 = w @ e2[k]
+            bv = (d11[k] * d20 - d01[k] * d21) / den[k]
+            bw = (d00[k] * d21 - d01[k] * d20) / den[k]
+            inside = (bv >= -tol) & (bw >= -tol) & (bv + bw <= 1.0 + tol)
+            hit[idx[inside]] = True
+        out[s + cand[hit]] = True
+    return out
+
+
+def visibility_matrix(src: np.ndarray, dst: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """``(M, N)`` 1.0 where the segment ``src[n] → dst[m]`` is not blocked by ``tris``, else 0.0."""
+    src = np.atleast_2d(np.asarray(src, float))
+    dst = np.atleast_2d(np.asarray(dst, float))
+    M, N = len(dst), len(src)
+    A = np.broadcast_to(src[None, :, :], (M, N, 3)).reshape(-1, 3)
+    B = np.broadcast_to(dst[:, None, :], (M, N, 3)).reshape(-1, 3)
+    return (~segments_blocked(A, B, tris)).reshape(M, N).astype(float)

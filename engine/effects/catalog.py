@@ -9,7 +9,7 @@ and what the diagnosis may fit when it tries the effect (``fit_parameters``).
 id                     kind        physics
 =====================  ==========  ============================================================
 angular_profile        geometric   lamps emit I0·f(θ) (declared profile, or Gaussian σ)
-interreflection        global      radiosity between floor, walls, ceiling (spectral ρ)
+interreflection        global      radiosity between floor, walls, ceiling, meshes (spectral ρ)
 diffuser               geometric   plate: spectral transmittance, Fresnel angular loss,
                                    Lambertian re-emission of a diffuse fraction
 aperture_occlusion     geometric   occluders (aperture plates, panels) block lamp→point paths
@@ -106,7 +106,8 @@ class AngularProfileEffect(PhysicalEffect):
 @register_effect
 class InterreflectionEffect(PhysicalEffect):
     id = "interreflection"
-    summary = "Light reflected between floor, walls and ceiling (radiosity with spectral reflectances)."
+    summary = ("Light reflected between floor, walls, ceiling and meshes such as a luminaire cavity "
+               "(radiosity with spectral reflectances).")
     kind = "global"
     order = 900
     fit_parameters = {"reflectance_scale": (0.05, 2.5)}
@@ -119,6 +120,9 @@ class InterreflectionEffect(PhysicalEffect):
         reflectance_scale: float = Field(1.0, gt=0, le=3,
                                          description="Multiplier on all surface reflectances "
                                                      "(clipped at 0.99).")
+        meshes: bool = Field(True, description="Include the booth's meshes (luminaire cavity, "
+                                               "props): both faces reflect, and they block light "
+                                               "between surfaces (visibility tested).")
 
     @classmethod
     def applicable(cls, ir, lighting):
@@ -139,8 +143,14 @@ class InterreflectionEffect(PhysicalEffect):
     def refit_cost_s(cls, ir, params: dict) -> float:
         """Rough seconds per forward evaluation when ``reflectance_scale`` changes (LU per band)."""
         ps = float((params or {}).get("patch_size_mm", 100.0))
-        area = sum(s.area_mm2() for s in ir.surfaces if s.role != "mesh")
-        n = area / ps ** 2
+        meshes = bool((params or {}).get("meshes", True))
+        n = sum(s.area_mm2() for s in ir.surfaces if s.role != "mesh") / ps ** 2
+        if meshes:
+            from lbscene.engine.radiosity import mesh_patch_size_mm
+
+            # both faces of a mesh are patches, at the (finer) mesh patch size
+            n += sum(2.0 * s.area_mm2() for s in ir.surfaces if s.role == "mesh") / \
+                mesh_patch_size_mm(ir, ps) ** 2
         return 16 * 0.8 * (n / 1000.0) ** 3
 
     @staticmethod

@@ -7,6 +7,11 @@ again, an interrupted run resumes with the jobs that are left.
 Products go to ``<build dir>/bake/<lighting>/`` (for a booth argument, the
 build dir is ``build/<booth folder>``, as ``lbscene build`` uses), where the
 realtime renderer finds them.
+
+``--cross-check`` bakes nothing for the renderer: it compares Cycles with the
+analytic forward model at the 55 grid points (:mod:`lbscene.bakers.crosscheck`),
+direct light and with inter-reflection, and prints the deviations and the
+bake's noise; exit code 1 when a check fails its tolerance.
 """
 
 from __future__ import annotations
@@ -30,37 +35,53 @@ class QualityName(str, Enum):
     final = "final"
 
 
-def _load_targets(target: Path, lighting: Optional[str], quality: str, samples: Optional[int],
-                  allowed_dirs) -> tuple[object, Path, list]:
-    """(IR, build dir, [(lighting, job)]) for a build folder or a booth."""
-    from lbscene.bakers.from_ir import job_path_in_build, lighting_job
-    from lbscene.bakers.job import load_job
+class CrossMode(str, Enum):
+    both = "both"
+    direct = "direct"
+    interreflection = "interreflection"
+
+
+def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
+    """(IR, build dir, from a build folder?) for a build folder or a booth."""
     from lbscene.engine.diagnostics import LbsceneUserError
     from lbscene.engine.ir import SceneIR
 
     if target.is_dir() and (target / "scene.ir.json").is_file():
-        build_dir = target
         try:
             ir = SceneIR.model_validate_json((target / "scene.ir.json").read_text())
         except ValueError as exc:
             raise LbsceneUserError.single("LB601", f"unreadable scene IR: {str(exc)[:200]}",
                                           str(target / "scene.ir.json"),
                                           expected="a build folder written by `lbscene build`") from None
-        from_build = True
-    else:
-        from lbscene.engine.compile import compile_booth, find_booth_file
+        return ir, target, True
+    from lbscene.engine.compile import compile_booth, find_booth_file
 
-        booth_file = find_booth_file(target)
-        ir = compile_booth(booth_file, allowed_dirs=allowed_dirs)
-        build_dir = Path("build") / booth_file.resolve().parent.name
-        from_build = False
+    booth_file = find_booth_file(target)
+    ir = compile_booth(booth_file, allowed_dirs=allowed_dirs)
+    return ir, Path("build") / booth_file.resolve().parent.name, False
+
+
+def _lighting_names(ir, target: Path, lighting: Optional[str]) -> list[str]:
+    from lbscene.engine.diagnostics import LbsceneUserError
+
     names = list(ir.lighting)
-    if lighting is not None:
-        if lighting not in ir.lighting:
-            raise LbsceneUserError.single(
-                "LB500", f"booth has no lighting configuration {lighting!r}", str(target),
-                value=repr(lighting), expected=f"one of {', '.join(names)}")
-        names = [lighting]
+    if lighting is None:
+        return names
+    if lighting not in ir.lighting:
+        raise LbsceneUserError.single(
+            "LB500", f"booth has no lighting configuration {lighting!r}", str(target),
+            value=repr(lighting), expected=f"one of {', '.join(names)}")
+    return [lighting]
+
+
+def _load_targets(target: Path, lighting: Optional[str], quality: str, samples: Optional[int],
+                  allowed_dirs) -> tuple[object, Path, list]:
+    """(IR, build dir, [(lighting, job)]) for a build folder or a booth."""
+    from lbscene.bakers.from_ir import job_path_in_build, lighting_job
+    from lbscene.bakers.job import load_job
+
+    ir, build_dir, from_build = _load_ir(target, allowed_dirs)
+    names = _lighting_names(ir, target, lighting)
     jobs = []
     for name in names:
         job = None
@@ -83,15 +104,22 @@ def register(app: typer.Typer) -> None:
         target: Path = typer.Argument(..., help="Build folder (from `lbscene build`) or booth folder/file."),
         lighting: Optional[str] = typer.Option(None, "--lighting", "-l", help="Only this lighting."),
         quality: QualityName = typer.Option(QualityName.preview, "--quality", "-q",
-                                            help="preview (fast) or final (≤ 1 % noise at grid points)."),
+                                            help="preview (fast) or final (grid points sampled "
+                                                 "until ≤ 1 % noise)."),
         samples: Optional[int] = typer.Option(None, "--samples", "-s", min=2,
-                                              help="Samples per pixel/texel for every product."),
+                                              help="Samples per pixel/texel for every product "
+                                                   "(fixed: no sampling to a noise target)."),
         out: Optional[Path] = typer.Option(None, "--out", "-o",
                                            help="Folder of the bakes (default: <build dir>/bake)."),
         force: bool = typer.Option(False, "--force", help="Bake again even when cached."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
         allow_path: Optional[List[Path]] = typer.Option(
             None, "--allow-path", help="Extra folder file references may point into."),
+        cross_check: bool = typer.Option(
+            False, "--cross-check",
+            help="Compare Cycles with the analytic model at the 55 grid points (no products)."),
+        cross_mode: CrossMode = typer.Option(CrossMode.both, "--cross-check-mode",
+                                             help="Which comparison --cross-check runs."),
     ) -> None:
         """Bake spectral light products of a booth with Blender Cycles (env maps, irradiance)."""
         from rich.console import Console
@@ -99,6 +127,10 @@ def register(app: typer.Typer) -> None:
 
         from lbscene.bakers.executor import BakeTask, run_tasks
 
+        if cross_check:
+            _run_cross_check(target, lighting, quality.value, samples, format, cross_mode,
+                             tuple(allow_path or ()))
+            return
         t0 = time.perf_counter()
         ir, build_dir, jobs = _load_targets(target, lighting, quality.value, samples,
                                             tuple(allow_path or ()))
@@ -144,3 +176,47 @@ def register(app: typer.Typer) -> None:
                     typer.echo(f"    {line}", err=True)
         if failed:
             raise typer.Exit(1)
+
+
+def _run_cross_check(target: Path, lighting: Optional[str], quality: str, samples: Optional[int],
+                     format: Format, mode: CrossMode, allowed_dirs) -> None:
+    """``--cross-check``: Cycles vs the analytic model at the grid points, per lighting and mode.
+
+    The result column shows the per-point tolerance (percent): the mode's
+    agreement target plus four times the bake's RMS noise.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    from lbscene.bakers.crosscheck import MODES, cross_check_all
+
+    t0 = time.perf_counter()
+    ir, _, _ = _load_ir(target, allowed_dirs)
+    names = _lighting_names(ir, target, lighting)
+    modes = MODES if mode is CrossMode.both else (mode.value,)
+    checks = []
+    for name in names:
+        checks += cross_check_all(ir, name, modes=modes, quality=quality, samples=samples,
+                                  progress=format is Format.text)
+    rows = [c.summary() for c in checks]
+    failed = [r for r in rows if not r["passed"]]
+    elapsed = time.perf_counter() - t0
+    if format is Format.json:
+        typer.echo(json.dumps({"booth": ir.booth_name, "ir_hash": ir.content_hash, "quality": quality,
+                               "elapsed_s": round(elapsed, 2), "cross_check": rows},
+                              indent=2, ensure_ascii=False))
+    else:
+        table = Table(title=f"{ir.booth_name}: Cycles / analytic model − 1 at "
+                            f"{rows[0]['points'] if rows else 0} grid points ({quality})")
+        for col in ("lighting", "mode", "spp", "time s", "mean %", "max|·| %", "noise %", "result"):
+            table.add_column(col, justify="left" if col in ("lighting", "mode", "result") else "right")
+        for r in rows:
+            table.add_row(r["lighting"], "inter-refl." if r["mode"] == "interreflection" else r["mode"],
+                          str(r["samples"]), f"{r['time_s']:.1f}", f"{r['mean_diff_percent']:+.2f}",
+                          f"{r['max_abs_diff_percent']:.2f}", f"{r['noise_rms_percent']:.2f}",
+                          f"ok ≤{r['tolerance_percent']:.1f}" if r["passed"]
+                          else f"FAIL >{r['tolerance_percent']:.1f}")
+        Console().print(table)
+        typer.echo(f"{len(rows) - len(failed)}/{len(rows)} checks agree ({elapsed:.1f} s)")
+    if failed:
+        raise typer.Exit(1)
