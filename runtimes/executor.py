@@ -2,9 +2,13 @@
 The moderngl executor of render graphs (headless EGL by default).
 
 :class:`GraphExecutor` creates the graph's render targets, compiles its
-programs from the GLSL ES 3.00 files in ``runtimes/shaders``, keeps the data
-textures and meshes it is given, and runs the passes in order.  It knows
+programs from the GLSL ES 3.00 files in ``runtimes/shaders`` (composed with
+their ``#define`` lines and ``include`` chunks by
+:func:`~lbscene.runtimes.graph.compose_shader`), keeps the data textures and
+meshes it is given, and runs the passes of a schedule in order.  It knows
 nothing about booths: bindings are resolved from a flat ``values`` dict.
+Raster draws may be ``fullscreen`` (one triangle, no vertex buffer) and set
+``depth_func`` / ``depth_write`` (the realtime schedule's background).
 
 Desktop/ES differences are handled here, never by editing shaders: a driver
 that refuses ``#version 300 es`` in a desktop core context gets the same
@@ -22,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .graph import SHADER_DIR
+from .graph import SHADER_DIR, compose_shader
 
 __all__ = ["GLUnavailableError", "create_context", "compile_program", "GraphExecutor", "PassTiming"]
 
@@ -97,6 +101,7 @@ class GraphExecutor:
         self.shader_dir = Path(shader_dir)
         self.size = (0, 0)
         self._programs: dict[tuple, Any] = {}
+        self._sources: dict[str, str] = {}
         self.targets: dict[str, Any] = {}
         self.data: dict[str, Any] = {}
         self._meshes: dict[str, tuple[Any, Any, int]] = {}
@@ -110,26 +115,30 @@ class GraphExecutor:
         self.resize(size)
 
     # ------------------------------------------------------------------ resources
-    def program(self, vert: str, frag: str, defines: tuple = ()):
-        """The program of two shader files, with ``#define`` lines injected after ``#version``."""
-        key = (vert, frag, defines)
+    def _read_shader(self, name: str) -> str:
+        text = self._sources.get(name)
+        if text is None:
+            text = self._sources[name] = (self.shader_dir / name).read_text()
+        return text
+
+    def program(self, vert: str, frag: str, defines: tuple = (), include: tuple = (),
+                vertex_include: tuple = ()):
+        """The program of two shader files, composed by :func:`~lbscene.runtimes.graph.compose_shader`:
+        ``#define`` lines after ``#version`` (both stages), then the ``include`` chunks (fragment
+        stage) or ``vertex_include`` chunks (vertex stage)."""
+        key = (vert, frag, defines, include, vertex_include)
         if key not in self._programs:
-            head = "".join(f"#define {k} {v}\n" for k, v in defines)
-
-            def src(name):
-                text = (self.shader_dir / name).read_text()
-                if not head:
-                    return text
-                first, _, rest = text.partition("\n")
-                return f"{first}\n{head}{rest}"
-
-            self._programs[key] = compile_program(self.ctx, src(vert), src(frag))
+            vs = compose_shader(self._read_shader(vert), defines, vertex_include, self._read_shader)
+            fs = compose_shader(self._read_shader(frag), defines, include, self._read_shader)
+            self._programs[key] = compile_program(self.ctx, vs, fs)
         return self._programs[key]
 
     def _program_for(self, item: dict):
         defines = tuple(sorted((k, int(self._value(b)) if not isinstance(b, dict) else b["value"])
                                for k, b in item.get("defines", {}).items()))
-        key = (item["program"]["vertex"], item["program"]["fragment"], defines)
+        prog = item["program"]
+        key = (prog["vertex"], prog["fragment"], defines, tuple(prog.get("include", ())),
+               tuple(prog.get("vertex_include", ())))
         return key, self.program(*key)
 
     def resize(self, size: tuple[int, int]) -> None:
@@ -209,6 +218,12 @@ class GraphExecutor:
                                                     index_buffer=ibo, index_element_size=4)
         return self._vaos[key]
 
+    def _fullscreen_vao(self, key: tuple, prog):
+        """A vertex array without buffers (fullscreen.vert builds its triangle from gl_VertexID)."""
+        if key not in self._empty_vao:
+            self._empty_vao[key] = self.ctx.vertex_array(prog, [])
+        return self._empty_vao[key]
+
     # ------------------------------------------------------------------ bindings
     def _value(self, binding):
         if isinstance(binding, dict):
@@ -264,24 +279,32 @@ class GraphExecutor:
                 ctx.enable(mgl.DEPTH_TEST)
                 ctx.front_face = "ccw"
                 for d in p["draws"]:
-                    mesh = self._meshes.get(d["mesh"])
-                    if mesh is None or mesh[2] == 0:
-                        continue
+                    if d.get("fullscreen"):
+                        mesh = None
+                    else:
+                        mesh = self._meshes.get(d["mesh"])
+                        if mesh is None or mesh[2] == 0:
+                            continue
                     key, prog = self._program_for(d)
                     if d.get("cull_back_faces"):
                         ctx.enable(mgl.CULL_FACE)
                     else:
                         ctx.disable(mgl.CULL_FACE)
+                    ctx.depth_func = d.get("depth_func", "<")
+                    fbo.depth_mask = bool(d.get("depth_write", True))
                     self._bind(prog, d.get("uniforms", {}), d.get("textures", {}))
-                    self._vao(d["mesh"], key).render(mgl.TRIANGLES)
+                    if mesh is None:
+                        self._fullscreen_vao(key, prog).render(mgl.TRIANGLES, vertices=3)
+                    else:
+                        self._vao(d["mesh"], key).render(mgl.TRIANGLES)
+                ctx.depth_func = "<"
+                fbo.depth_mask = True
                 ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
             else:
                 key, prog = self._program_for(p)
                 ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
                 self._bind(prog, p.get("uniforms", {}), p.get("textures", {}))
-                if key not in self._empty_vao:
-                    self._empty_vao[key] = ctx.vertex_array(prog, [])
-                self._empty_vao[key].render(mgl.TRIANGLES, vertices=3)
+                self._fullscreen_vao(key, prog).render(mgl.TRIANGLES, vertices=3)
             if timings is not None:
                 ctx.finish()
                 timings.append(PassTiming(p["name"], time.perf_counter() - t0))

@@ -7,13 +7,18 @@ moderngl runtime (:mod:`lbscene.runtimes.executor`) executes.  The graph is
 plain data (canonical JSON, byte-identical for the same IR):
 
 ``passes``
-    Every pass; ``schedules`` says which run, in order (``analysis``: all
-    intermediate images; ``realtime``: the full-screen stages fused into
-    ``resolve``).  ``raster`` passes draw meshes (``draws``), ``fullscreen``
-    passes run a fragment shader once per pixel.  Each names its program
-    (GLSL ES 3.00 files in ``runtimes/shaders``), compile-time ``defines``
-    (``#define NAME value`` lines the runtime puts after ``#version``; the
-    files default them), the textures it samples
+    Every pass; ``schedules`` says which run, in order (``analysis``: every
+    intermediate image — four spectral images, float XYZ, drive values;
+    ``deferred``: the spectral images, then one full-screen ``resolve``;
+    ``realtime``: one raster pass, ``shade_display``, whose fragment shaders
+    take each fragment from its 16 bands to 8-bit display colour).  ``raster``
+    passes draw meshes (``draws``; a draw with ``fullscreen: true`` is one
+    full-screen triangle), ``fullscreen`` passes run a fragment shader once per
+    pixel.  Each names its program (GLSL ES 3.00 files in ``runtimes/shaders``;
+    ``include`` / ``vertex_include``: library chunks ``lib_*.glsl`` put into
+    the fragment / vertex shader, see :func:`compose_shader`), compile-time
+    ``defines`` (``#define NAME value`` lines the runtime puts after
+    ``#version``; the files default them), the textures it samples
     (``textures``: sampler uniform → texture resource), its ``uniforms``
     (uniform → binding, see below) and its ``outputs`` (colour attachments in
     location order, optional depth).
@@ -22,7 +27,10 @@ plain data (canonical JSON, byte-identical for the same IR):
     (``source`` says who fills them); ``meshes``: vertex streams built from the
     IR's surfaces (``surfaces``) or from a render-time parameter (the sample),
     with their attribute layout and where their per-vertex irradiance comes
-    from.
+    from.  ``sides: 2``: surfaces that can be seen from both sides (the platform
+    and meshes: a luminaire housing turning with the platform can come between
+    the observer and the sample) are drawn as two one-sided layers, the back
+    one with flipped normals and its own irradiance; every draw culls back faces.
 ``bindings``
     A binding is a string naming a value the runtime computes per frame
     (``view.view_proj``, ``view.xyz_weights``, ``display.xyz_to_rgb`` …) or
@@ -43,7 +51,10 @@ channel ``c`` of block ``k``) from the materials and irradiance through the
 shading pass to ``spectral_radiance_0..3`` (W·sr⁻¹·m⁻²·nm⁻¹, band means);
 ``spectral_to_xyz`` weights them into absolute XYZ (Y in cd·m⁻²); ``display``
 applies the display model; ``dither`` quantises to 8 bits with a blue-noise
-mask.
+mask.  The realtime schedule runs the same library functions
+(``lib_spectral.glsl``, ``lib_display.glsl``, ``lib_dither.glsl``) inside the
+shading pass: on a CPU rasteriser (llvmpipe) writing, clearing and re-reading
+four RGBA32F images costs more than all the shading.
 
 Examples
 --------
@@ -77,6 +88,7 @@ __all__ = [
     "realised_geometry",
     "view_names",
     "shader_sources",
+    "compose_shader",
     "SCHEDULES",
 ]
 
@@ -287,9 +299,29 @@ def _surfaces(ir) -> dict[str, list[str]]:
 
 
 def shader_sources() -> dict[str, str]:
-    """Every shader file of the runtime: name → source."""
+    """Every shader file of the runtime (stages ``.vert``/``.frag`` and library chunks
+    ``.glsl``): name → source."""
     return {p.name: p.read_text() for p in sorted(SHADER_DIR.iterdir())
-            if p.suffix in (".vert", ".frag")}
+            if p.suffix in (".vert", ".frag", ".glsl")}
+
+
+def compose_shader(source: str, defines=(), include=(), read=None) -> str:
+    """The source a program compiles: the stage file's ``#version`` line, one ``#define NAME
+    value`` line per define, the ``include`` chunks in order, then the rest of the file.
+
+    This is the whole preprocessing a runtime does (string concatenation, the same in
+    WebGL2); ``read(name)`` returns a chunk's text (default: the file in ``SHADER_DIR``).
+
+    >>> compose_shader("#version 300 es\nvoid main() {}\n", [("A", 1)])
+    '#version 300 es\n#define A 1\nvoid main() {}\n'
+    """
+    read = read or (lambda name: (SHADER_DIR / name).read_text())
+    head = "".join(f"#define {k} {v}\n" for k, v in defines)
+    libs = "".join(f"// ---- include {name}\n{read(name).rstrip()}\n// ---- end {name}\n" for name in include)
+    if not head and not libs:
+        return source
+    first, _, rest = source.partition("\n")
+    return f"{first}\n{head}{libs}{rest}"
 
 
 def _shader_digest() -> dict[str, str]:
@@ -305,13 +337,27 @@ def _vertex_layout() -> list[dict]:
         {"name": f"a_irradiance{k}", "components": 4} for k in range(4)]
 
 
-def _passes() -> list[dict]:
+#: GLSL ES 3.00 chunks (no ``#version``) a program can ``include``.
+LIB_SPECTRAL = "lib_spectral.glsl"
+LIB_DISPLAY = "lib_display.glsl"
+LIB_DITHER = "lib_dither.glsl"
+RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
+DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"}
+DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_xyz_offset": "display.xyz_offset",
+                    "u_xyz_to_rgb": "display.xyz_to_rgb", "u_tone_params": "display.tone_params",
+                    "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span"}
+DITHER_UNIFORMS = {"u_noise_size": "dither.noise_size", "u_dither_amplitude": "dither.amplitude"}
+RESOLVE_UNIFORMS = dict({"u_xyz_weights": "view.xyz_weights"}, **DISPLAY_UNIFORMS, **DITHER_UNIFORMS)
+RESOLVE_TEXTURES = {"u_tone_lut": "tone_lut", "u_noise": "blue_noise"}
+
+
+def _surface_draws(to_display: bool) -> list[dict]:
+    """The draws of the booth and the sample.  ``to_display``: the realtime variant, whose
+    fragment shaders finish the pixel (``SHADE_TO_DISPLAY 1``, resolve libraries included).
+
+    The sample and the platform go first: drawn front to back, what they hide of the booth
+    fails the (early) depth test instead of being shaded and overwritten."""
     surface_uniforms = {"u_view_proj": "view.view_proj", "u_model": "view.identity"}
-    booth_draw = {
-        "program": {"vertex": "surface.vert", "fragment": "booth.frag"},
-        "uniforms": dict(surface_uniforms),
-        "textures": {"u_materials": "materials"},
-    }
     sample_uniforms = dict(surface_uniforms)
     sample_uniforms.update({
         "u_eye_mm": "view.eye_mm",
@@ -323,6 +369,40 @@ def _passes() -> list[dict]:
         "u_specular_weight": "sample.specular_weight",
         "u_f0": "sample.f0",
     })
+    booth_program = {"vertex": "surface.vert", "fragment": "booth.frag"}
+    sample_program = {"vertex": "surface.vert", "fragment": "sample.frag"}
+    booth_uniforms = dict(surface_uniforms)
+    booth_textures = {"u_materials": "materials"}
+    sample_textures = {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
+                       "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}
+    booth_extra: dict = {}
+    sample_extra: dict = {}
+    if to_display:
+        # diffuse booth surfaces: bands → XYZ per vertex (surface.vert, VERTEX_XYZ 1), then
+        # display and dither per pixel; the sample: everything per pixel
+        booth_program.update(vertex_include=[LIB_SPECTRAL], include=[LIB_DISPLAY, LIB_DITHER])
+        sample_program["include"] = list(RESOLVE_LIBS)
+        booth_uniforms.update(RESOLVE_UNIFORMS)
+        sample_uniforms.update(RESOLVE_UNIFORMS)
+        booth_textures.update(RESOLVE_TEXTURES)
+        sample_textures.update(RESOLVE_TEXTURES)
+        booth_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1}, VERTEX_XYZ={"value": 1})}
+        sample_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1})}
+
+    def booth(name, mesh, cull):
+        return dict({"name": name, "mesh": mesh, "cull_back_faces": cull, "program": dict(booth_program),
+                     "uniforms": dict(booth_uniforms), "textures": dict(booth_textures)}, **booth_extra)
+
+    return [
+        dict({"name": "sample", "mesh": "sample", "cull_back_faces": False, "program": dict(sample_program),
+              "uniforms": sample_uniforms, "textures": sample_textures}, **sample_extra),
+        booth("platform", "platform", True),
+        booth("booth_meshes", "booth_meshes", True),
+        booth("booth", "booth", True),
+    ]
+
+
+def _passes() -> list[dict]:
     return [
         {"name": "surfaces", "kind": "raster",
          "doc": "Booth and sample from the observer: spectral radiance in 4 RGBA32F blocks. "
@@ -331,20 +411,11 @@ def _passes() -> list[dict]:
                 "angle, plus GGX highlights of area and line lights by LTC.",
          "outputs": {"color": list(SPECTRAL_TARGETS), "depth": "depth"},
          "clear": {"color": [0.0, 0.0, 0.0, 0.0], "depth": 1.0},
-         "draws": [
-             dict(booth_draw, name="booth", mesh="booth", cull_back_faces=True),
-             dict(booth_draw, name="booth_meshes", mesh="booth_meshes", cull_back_faces=False),
-             dict(booth_draw, name="platform", mesh="platform", cull_back_faces=False),
-             {"name": "sample", "mesh": "sample", "cull_back_faces": False,
-              "program": {"vertex": "surface.vert", "fragment": "sample.frag"},
-              "uniforms": sample_uniforms,
-              "textures": {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
-                           "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}},
-         ]},
+         "draws": _surface_draws(False)},
         {"name": "spectral_to_xyz", "kind": "fullscreen",
          "doc": "16 band radiances → absolute XYZ (Y in cd/m²) with band weights for the light "
                 "at the sample.",
-         "program": {"vertex": "fullscreen.vert", "fragment": "spectral_to_xyz.frag"},
+         "program": {"vertex": "fullscreen.vert", "fragment": "spectral_to_xyz.frag", "include": [LIB_SPECTRAL]},
          "textures": {f"u_radiance{k}": SPECTRAL_TARGETS[k] for k in range(4)},
          "uniforms": {"u_xyz_weights": "view.xyz_weights"},
          "outputs": {"color": ["xyz"]}},
@@ -352,42 +423,51 @@ def _passes() -> list[dict]:
          "doc": "Absolute XYZ → display drive values with the display model (exposure, black "
                 "and ambient flare, primaries, out-of-gamut mapping, tone response); alpha = "
                 "out-of-gamut excess.",
-         "program": {"vertex": "fullscreen.vert", "fragment": "display.frag"},
+         "program": {"vertex": "fullscreen.vert", "fragment": "display.frag", "include": [LIB_DISPLAY]},
          "textures": {"u_xyz": "xyz", "u_tone_lut": "tone_lut"},
-         "defines": {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"},
-         "uniforms": {"u_exposure": "display.exposure", "u_xyz_offset": "display.xyz_offset",
-                      "u_xyz_to_rgb": "display.xyz_to_rgb",
-                      "u_tone_params": "display.tone_params", "u_tone_lut_size": "display.tone_lut_size",
-                      "u_inv_y_span": "display.inv_y_span"},
+         "defines": dict(DISPLAY_DEFINES),
+         "uniforms": dict(DISPLAY_UNIFORMS),
          "outputs": {"color": ["display_drive"]}},
         {"name": "dither", "kind": "fullscreen",
          "doc": "Blue-noise spatial dithering, then quantisation to 8 bits per channel.",
-         "program": {"vertex": "fullscreen.vert", "fragment": "dither.frag"},
+         "program": {"vertex": "fullscreen.vert", "fragment": "dither.frag", "include": [LIB_DITHER]},
          "textures": {"u_drive": "display_drive", "u_noise": "blue_noise"},
-         "uniforms": {"u_noise_size": "dither.noise_size", "u_noise_offsets": "dither.channel_offsets",
-                      "u_dither_amplitude": "dither.amplitude"},
+         "uniforms": dict(DITHER_UNIFORMS),
          "outputs": {"color": ["display_rgba8"]}},
         {"name": "resolve", "kind": "fullscreen",
-         "doc": "spectral_to_xyz, display and dither fused into one pass (the realtime schedule): "
-                "the same arithmetic without the intermediate XYZ and drive images.",
-         "program": {"vertex": "fullscreen.vert", "fragment": "resolve.frag"},
-         "textures": dict({f"u_radiance{k}": SPECTRAL_TARGETS[k] for k in range(4)},
-                          u_tone_lut="tone_lut", u_noise="blue_noise"),
-         "defines": {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"},
-         "uniforms": {"u_xyz_weights": "view.xyz_weights", "u_exposure": "display.exposure",
-                      "u_xyz_offset": "display.xyz_offset", "u_xyz_to_rgb": "display.xyz_to_rgb",
-                      "u_tone_params": "display.tone_params",
-                      "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
-                      "u_noise_size": "dither.noise_size",
-                      "u_noise_offsets": "dither.channel_offsets", "u_dither_amplitude": "dither.amplitude"},
+         "doc": "spectral_to_xyz, display and dither fused into one full-screen pass (the deferred "
+                "schedule): the same functions without the intermediate XYZ and drive images.",
+         "program": {"vertex": "fullscreen.vert", "fragment": "resolve.frag", "include": list(RESOLVE_LIBS)},
+         "textures": dict({f"u_radiance{k}": SPECTRAL_TARGETS[k] for k in range(4)}, **RESOLVE_TEXTURES),
+         "defines": dict(DISPLAY_DEFINES),
+         "uniforms": dict(RESOLVE_UNIFORMS),
          "outputs": {"color": ["display_rgba8"]}},
+        {"name": "shade_display", "kind": "raster",
+         "doc": "The realtime schedule's single pass: the surfaces pass's shading, each fragment "
+                "then taken through spectral → XYZ → display → dither (the same library functions "
+                "as the full-screen passes) and written as 8-bit colour; the 16 bands stay in "
+                "registers as 4 vec4 blocks instead of round-tripping through four RGBA32F images. "
+                "Pixels no surface covers get the background draw: zero radiance through the same "
+                "functions, at the far plane (depth test <=, so only where the depth is still clear).",
+         "outputs": {"color": ["display_rgba8"], "depth": "depth"},
+         "clear": {"color": [0.0, 0.0, 0.0, 1.0], "depth": 1.0},
+         "draws": _surface_draws(True) + [
+             {"name": "background", "fullscreen": True, "depth_func": "<=", "depth_write": False,
+              "program": {"vertex": "fullscreen.vert", "fragment": "background.frag",
+                          "include": [LIB_DISPLAY, LIB_DITHER]},
+              "defines": dict(DISPLAY_DEFINES, FULLSCREEN_Z={"value": 1.0}),
+              "uniforms": dict(DISPLAY_UNIFORMS, **DITHER_UNIFORMS),
+              "textures": dict(RESOLVE_TEXTURES)}]},
     ]
 
 
-#: Which passes run, in order.  ``analysis`` keeps every intermediate image (float XYZ,
-#: drive values with the out-of-gamut excess); ``realtime`` fuses the full-screen stages.
+#: Which passes run, in order.  ``analysis`` keeps every intermediate image (four spectral
+#: images, float XYZ, drive values with the out-of-gamut excess); ``deferred`` shades into the
+#: spectral images and resolves them in one full-screen pass; ``realtime`` shades straight to
+#: 8-bit display colour (one raster pass, no float images).  All three give the same 8-bit image.
 SCHEDULES = {"analysis": ["surfaces", "spectral_to_xyz", "display", "dither"],
-             "realtime": ["surfaces", "resolve"]}
+             "deferred": ["surfaces", "resolve"],
+             "realtime": ["shade_display"]}
 
 
 _VALUES_DOC = {
@@ -413,7 +493,6 @@ _VALUES_DOC = {
     "display.gamut_mapping": "int, 0 clip, 1 chroma (a #define)",
     "display.inv_y_span": "float, 1 / (white − black luminance) of the display, for the chroma mapping",
     "dither.noise_size": "int, side of the blue-noise mask (a power of two)",
-    "dither.channel_offsets": "ivec4, mask offsets (x, y) of channels G and B: (s/2, s/3, s/3, s/2)",
     "dither.amplitude": "float, 1: dithering on, 0: plain rounding",
 }
 
@@ -466,16 +545,20 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
         "tone_lut": {"format": "rgba32f", "size": ["display.tone_lut_size", 1], "usage": "data",
                      "source": "parameter:display"},
         "blue_noise": {"format": "rgba32f", "size": ["dither.noise_size", "dither.noise_size"],
-                       "usage": "data", "source": "colour.dither (builtin fallback)"},
+                       "usage": "data", "source": "colour.dither (builtin fallback)",
+                       "layout": "r: the mask; g, b: the mask shifted by the channel offsets (x, y) of "
+                                 "channels G and B (colour.dither.channel_offsets_xy, else (s/2, s/3) "
+                                 "and (s/3, s/2)): texel (x, y) of g = mask((x + dx) mod s, (y + dy) mod s)"},
     })
     attrs = _vertex_layout()
     meshes = {
         "booth": {"surfaces": split["booth"], "attributes": attrs, "placement": "static",
                   "tessellation": "grid, cells <= 1/48 of the booth's largest dimension"},
         "booth_meshes": {"surfaces": split["booth_meshes"], "attributes": attrs, "placement": "static",
-                         "tessellation": "triangles split to edges <= 1/24 of the largest dimension"},
+                         "tessellation": "triangles split to edges <= 1/24 of the largest dimension",
+                         "sides": 2},
         "platform": {"surfaces": split["platform"], "attributes": attrs, "placement": "platform",
-                     "tessellation": "as booth / booth_meshes"},
+                     "tessellation": "as booth / booth_meshes", "sides": 2},
         "sample": {"source": "parameter:sample", "attributes": attrs, "placement": "platform",
                    "tessellation": "16 × 16 grid over the sample's size_mm"},
     }
@@ -494,7 +577,8 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
         "bands": dict(grid.to_json(), blocks=n_blocks, labels=band_labels(grid)),
         "requires": {"glsl": "300 es", "max_draw_buffers": n_blocks,
                      "webgl2_extensions": ["EXT_color_buffer_float"],
-                     "note": "float textures are read with texelFetch only (no float filtering)"},
+                     "note": "float textures are read with texelFetch only (no float filtering); "
+                             "the realtime schedule renders to RGBA8 only (no float render targets)"},
         "units": {"length": "mm", "spectral_radiance": "W·sr⁻¹·m⁻²·nm⁻¹ (band mean)",
                   "spectral_irradiance": "W·m⁻²·nm⁻¹ (band mean)", "intensity": "W·sr⁻¹·nm⁻¹",
                   "xyz": "Y in cd·m⁻²"},

@@ -94,8 +94,10 @@ class Renderer:
     def render(self, view: str | None = None, size: tuple[int, int] = (1024, 768), *,
                want_xyz: bool = False, want_gamut: bool = False, timings: bool = False,
                schedule: str | None = None) -> Frame:
-        """Render one frame.  The ``realtime`` schedule unless XYZ or gamut data are wanted
-        (then ``analysis``, which keeps those images), or as ``schedule`` says."""
+        """Render one frame.  The ``realtime`` schedule (one raster pass straight to 8-bit
+        colour) unless XYZ or gamut data are wanted (then ``analysis``, which keeps those
+        images), or as ``schedule`` says; every schedule gives the same 8-bit image (up to
+        rare one-level differences where float rounding meets a dither threshold)."""
         view = view or self.scene.view_names[0]
         self.prepare(view, size)
         if schedule is None:
@@ -268,8 +270,13 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
     graph = build_render_graph(ir, cfg.lighting)
     names = view_names(ir)
     booth_geoms = [g.name for g in ir.geometries]
+    notes: list[str] = []
     if all_geometries:
         views = names
+        if len(booth_geoms) < 2:
+            notes.append(f"booth {ir.booth_name!r} declares "
+                         + (f"one viewing geometry ({booth_geoms[0]})" if booth_geoms else "no viewing geometry")
+                         + ": the contact sheet has one view")
     else:
         want = geometry or cfg.geometry
         if want is None:
@@ -277,15 +284,14 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
         elif want not in booth_geoms:
             loc = None if geometry else doc.locate("geometry")
             expected = f"one of {', '.join(booth_geoms)}" if booth_geoms else "no geometry (this booth has none)"
-            raise _err("LB303", f"unknown viewing geometry {want!r} for booth {ir.booth_name!r}", loc,
-                       value=repr(want), expected=expected)
+            raise _err("LB303", f"{'--geometry: ' if geometry else ''}unknown viewing geometry {want!r} for "
+                                f"booth {ir.booth_name!r}", loc, value=repr(want), expected=expected)
         else:
             views = [want]
 
     sdoc = load_document(doc.resolve(cfg.sample), Sample, allowed_dirs=allowed_dirs)
     sample = SampleSpec.from_document(sdoc)
 
-    notes: list[str] = []
     if cfg.display.strip().lower() in ("builtin:srgb", "srgb"):
         display = srgb_display()
     else:

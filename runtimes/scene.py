@@ -39,6 +39,7 @@ __all__ = [
     "look_at",
     "perspective",
     "tessellate_surface",
+    "noise_texture",
 ]
 
 #: position 3, normal 3, uv 2, material 1, irradiance 16
@@ -348,15 +349,25 @@ def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
     return np.clip(fm.spectral_irradiance_1nm([point], [normal])[0], 0.0, None)
 
 
-def _noise_offsets(size: int) -> np.ndarray:
-    """(x, y) mask offsets of channels G and B (the colour module's channel_offsets_xy)."""
+def _noise_offsets(size: int) -> tuple[tuple[int, int], ...]:
+    """(x, y) mask offsets of channels R, G, B (the colour module's channel_offsets_xy)."""
     try:
         from lbscene.engine.colour.dither import channel_offsets_xy
 
-        offs = channel_offsets_xy(size)
+        return tuple((int(x), int(y)) for x, y in channel_offsets_xy(size))
     except ImportError:
-        offs = ((0, 0), (size // 2, size // 3), (size // 3, size // 2))
-    return np.asarray([offs[1][0], offs[1][1], offs[2][0], offs[2][1]], np.int32)
+        return ((0, 0), (size // 2, size // 3), (size // 3, size // 2))
+
+
+def noise_texture(mask: np.ndarray) -> np.ndarray:
+    """(s, s, 4) float32 for the ``blue_noise`` texture: channel c at texel (x, y) holds the
+    mask at ((x + dx_c) mod s, (y + dy_c) mod s) for the channel offsets, so the shader
+    fetches one texel for three channels."""
+    mask = np.asarray(mask, np.float32)
+    out = np.zeros(mask.shape + (4,), np.float32)
+    for c, (dx, dy) in enumerate(_noise_offsets(mask.shape[0])):
+        out[..., c] = np.roll(mask, (-dy, -dx), axis=(0, 1))
+    return out
 
 
 # --------------------------------------------------------------------------- builder
@@ -399,6 +410,7 @@ class SceneBuilder:
         self.dither = bool(dither)
         self.camera = camera or CameraSpec()
         self._views: dict[str, ViewInputs] = {}
+        self._irradiance_memo: dict[tuple, np.ndarray] = {}
         self._static: dict[str, np.ndarray] | None = None
         self._geometry: dict | None = None
         dims = (ir.interior.width_mm, ir.interior.depth_mm, ir.interior.height_mm)
@@ -426,9 +438,7 @@ class SceneBuilder:
             lt = load_table()
             mag = np.zeros(lt.mag.shape[:2] + (4,), np.float32)
             mag[..., :2] = lt.mag
-            noise = blue_noise_mask(64)
-            bn = np.zeros(noise.shape + (4,), np.float32)
-            bn[..., 0] = noise
+            bn = noise_texture(blue_noise_mask(64))
             self._static = {"materials": m, "ltc_minv": lt.minv.astype(np.float32), "ltc_mag": mag,
                             "blue_noise": bn, "tone_lut": self.display.lut_texture()}
         return self._static
@@ -450,6 +460,12 @@ class SceneBuilder:
                 p, n, uv, tris = tessellate_surface(s, self.cell_mm)
                 parts.append((p, n, uv, np.full(len(p), mat_index[s.material], float), tris + base))
                 base += len(p)
+                if spec.get("sides", 1) == 2:
+                    # the back layer: same points, flipped normals, reversed winding (so that
+                    # back-face culling shows exactly one layer), its own irradiance
+                    parts.append((p, -n, uv, np.full(len(p), mat_index[s.material], float),
+                                  tris[:, ::-1] + base))
+                    base += len(p)
             if parts:
                 out[name] = tuple(np.concatenate([pt[i] for pt in parts]) for i in range(5))
             else:
@@ -512,7 +528,15 @@ class SceneBuilder:
             pw, nw = to_world(p, n, mounted)
             if len(p):
                 pl, nl = to_light_frame(p, n, mounted)
-                irr = _irradiance_bands(ir, self.lighting, pl, nl, self.indirect_cell_mm)
+                # the same receivers in the light's frame give the same light: parts that turn
+                # with a platform-mounted luminaire, or fixed parts under fixed lamps, are
+                # evaluated once for all views
+                key = (mname, hashlib.sha256(np.ascontiguousarray(pl).tobytes()
+                                             + np.ascontiguousarray(nl).tobytes()).hexdigest())
+                if key not in self._irradiance_memo:
+                    self._irradiance_memo[key] = _irradiance_bands(ir, self.lighting, pl, nl,
+                                                                   self.indirect_cell_mm)
+                irr = self._irradiance_memo[key].copy()
             else:
                 irr = np.zeros((0, grid.count))
             meshes[mname] = [pw, nw, uv, mat, irr, tris]
@@ -620,7 +644,6 @@ class SceneBuilder:
             "display.gamut_mapping": int(d.gamut_mapping),
             "display.inv_y_span": float(d.inv_y_span),
             "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
-            "dither.channel_offsets": _noise_offsets(int(self.static_textures()["blue_noise"].shape[0])),
             "dither.amplitude": 1.0 if self.dither else 0.0,
         }
         info.update({"realised": vs["realised"], "geometry": vs["geometry"],

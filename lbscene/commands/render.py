@@ -54,8 +54,10 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = typer.Option(None, "--out", "-o", help="PNG to write (default: the config's output.png)."),
         geometry: Optional[str] = typer.Option(None, "--geometry", "-g", help="Viewing geometry, e.g. 45as15."),
         size: Optional[str] = typer.Option(None, "--size", help="WIDTHxHEIGHT in pixels (16..8192 each)."),
-        all_geometries: bool = typer.Option(False, "--all-geometries",
-                                            help="Render every geometry of the booth into one contact sheet."),
+        all_geometries: bool = typer.Option(
+            False, "--all-geometries",
+            help="Render every viewing geometry of the booth (six for the byko-spectra effect) into one "
+                 "contact sheet of labelled tiles, each --size; with --xyz, one XYZ file per view."),
         xyz: Optional[Path] = typer.Option(None, "--xyz", help="Also write the float XYZ image (.npy or .exr)."),
         diffuse: Optional[Diffuse] = typer.Option(None, "--diffuse",
                                                   help="Override the config: auto, baked or analytic."),
@@ -68,7 +70,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Render a sample in a virtual booth (spectral, 16 bands) to a display-encoded PNG."""
         from rich.console import Console
-        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
+                                   TimeElapsedColumn)
 
         from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.load import display_path
@@ -117,10 +120,17 @@ def register(app: typer.Typer) -> None:
 
         from lbscene.runtimes.executor import GLUnavailableError
 
+        t_prepared = time.perf_counter()
+        scene_s: dict[str, float] = {}
+        frame_s: dict[str, float] = {}
         frames = []
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
-                      console=console, transient=True, disable=format is Format.json) as prog:
-            task = prog.add_task("render: GL context", total=None)
+        columns = [SpinnerColumn(), TextColumn("{task.description}")]
+        if len(job.views) > 1:
+            columns.append(BarColumn())
+            columns.append(MofNCompleteColumn())
+        with Progress(*columns, TimeElapsedColumn(), console=console, transient=True,
+                      disable=format is Format.json) as prog:
+            task = prog.add_task("render: GL context", total=len(job.views))
             try:
                 renderer = job.renderer(device_index=egl_device)
             except GLUnavailableError as exc:
@@ -130,9 +140,19 @@ def register(app: typer.Typer) -> None:
             try:
                 for v in job.views:
                     prog.update(task, description=f"render: {v}: light at the vertices (forward model)")
+                    t0 = time.perf_counter()
                     renderer.scene.view(v)
+                    scene_s[v] = time.perf_counter() - t0
                     prog.update(task, description=f"render: {v}: {job.size[0]}x{job.size[1]}")
-                    frames.append(renderer.render(v, job.size, want_xyz=job.xyz is not None, want_gamut=True))
+                    t0 = time.perf_counter()
+                    try:
+                        frames.append(renderer.render(v, job.size, want_xyz=job.xyz is not None,
+                                                      want_gamut=True))
+                    except ValueError as exc:   # a viewport over the GL limit
+                        raise _usage_error(f"--size: {exc}", f"{job.size[0]}x{job.size[1]}",
+                                           "a size this OpenGL implementation can render")
+                    frame_s[v] = time.perf_counter() - t0
+                    prog.advance(task)
                 gl_name = renderer.gl_renderer
             finally:
                 renderer.close()
@@ -140,14 +160,15 @@ def register(app: typer.Typer) -> None:
         meta = {"lbscene:booth": job.ir.booth_name, "lbscene:ir_hash": job.ir.content_hash[:16],
                 "lbscene:lighting": job.graph["lighting"], "lbscene:sample": job.sample.name,
                 "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames)}
-        if len(frames) == 1:
-            write_png(job.png, frames[0].rgba8, meta)
+        if all_geometries:
+            # one labelled tile per view, even for a booth with one geometry (same layout always)
+            write_png(job.png, contact_sheet(frames, columns=min(3, len(frames))), meta)
         else:
-            write_png(job.png, contact_sheet(frames), meta)
+            write_png(job.png, frames[0].rgba8, meta)
         xyz_files = []
         if job.xyz is not None:
             for f in frames:
-                p = job.xyz if len(frames) == 1 else job.xyz.with_name(f"{job.xyz.stem}.{f.view}{job.xyz.suffix}")
+                p = job.xyz if not all_geometries else job.xyz.with_name(f"{job.xyz.stem}.{f.view}{job.xyz.suffix}")
                 write_xyz(p, f.xyz)
                 xyz_files.append(str(p))
         elapsed = time.perf_counter() - t_start
@@ -159,6 +180,13 @@ def register(app: typer.Typer) -> None:
             "booth": job.ir.booth_name, "lighting": job.graph["lighting"], "sample": job.sample.name,
             "display": job.display.name, "diffuse": job.diffuse, "bake": job.bake_note or None,
             "gl_renderer": gl_name, "elapsed_s": round(elapsed, 3), "notes": job.notes,
+            # where the time goes: loading/compiling the booth, the forward model at the vertices
+            # (per view), and the frame (uploads, first-use shader compilation, passes, read-back)
+            "timing_s": {"config_and_booth": round(t_prepared - t_start, 3),
+                         "scene_per_view": {v: round(x, 3) for v, x in scene_s.items()},
+                         "frame_per_view": {v: round(x, 3) for v, x in frame_s.items()}},
+            "contact_sheet": ({"views": len(frames), "columns": min(3, len(frames)),
+                               "tile_px": list(job.size)} if all_geometries else None),
             "colour_module": colour_module_features(),
             "views": [{"view": f.view, "realised": f.info.get("realised"),
                        "platform_rotation_deg": f.info.get("platform_rotation_deg"),

@@ -1,13 +1,29 @@
 #version 300 es
-// Diffuse booth surfaces: spectral radiance L_b = ρ_b · E_b / π per band, written as
-// four RGBA32F blocks (band 4k + c in channel c of block k).
+// Diffuse booth surfaces: spectral radiance L_b = ρ_b · E_b / π per band, as four vec4
+// blocks (band 4k + c in channel c of block k), written to four RGBA32F targets (the
+// analysis and deferred schedules).
+//
+// SHADE_TO_DISPLAY 1 (the realtime schedule; include: lib_display.glsl, lib_dither.glsl):
+// the vertex shader has already taken the bands to XYZ (surface.vert with VERTEX_XYZ 1);
+// the display model and the dither finish the pixel here and the 8-bit colour is written.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
 
-in vec3 v_position_mm;
-in vec3 v_normal;
-in vec2 v_uv;
+#ifndef SHADE_TO_DISPLAY
+#define SHADE_TO_DISPLAY 0
+#endif
+
+#if SHADE_TO_DISPLAY
+in vec3 v_xyz;
+
+layout(location = 0) out vec4 o_rgba;
+
+void main() {
+    o_rgba = vec4(dither8(display_drive(v_xyz).rgb, ivec2(gl_FragCoord.xy)), 1.0);
+}
+
+#else
 flat in int v_material;
 in vec4 v_irradiance0;
 in vec4 v_irradiance1;
@@ -31,3 +47,4 @@ void main() {
     o_radiance2 = texelFetch(u_materials, ivec2(2, m), 0) * v_irradiance2 * INV_PI;
     o_radiance3 = texelFetch(u_materials, ivec2(3, m), 0) * v_irradiance3 * INV_PI;
 }
+#endif

@@ -5,9 +5,14 @@
 // GGX highlights of the emitters (tubes as line lights of finite width, panels and lamp
 // bulbs as area lights) by linearly transformed cosines (Heitz et al. 2016), with the
 // project's own fitted tables (runtimes/ltc.py) and Schlick's Fresnel.
+// SHADE_TO_DISPLAY: as in booth.frag (0: four RGBA32F targets; 1: 8-bit display colour).
 precision highp float;
 precision highp int;
 precision highp sampler2D;
+
+#ifndef SHADE_TO_DISPLAY
+#define SHADE_TO_DISPLAY 0
+#endif
 
 in vec3 v_position_mm;
 in vec3 v_normal;
@@ -31,10 +36,14 @@ uniform float u_roughness;
 uniform float u_specular_weight;
 uniform float u_f0;
 
+#if SHADE_TO_DISPLAY
+layout(location = 0) out vec4 o_rgba;
+#else
 layout(location = 0) out vec4 o_radiance0;
 layout(location = 1) out vec4 o_radiance1;
 layout(location = 2) out vec4 o_radiance2;
 layout(location = 3) out vec4 o_radiance3;
+#endif
 
 const float PI = 3.141592653589793;
 const float INV_PI = 0.31830988618379067;
@@ -143,24 +152,8 @@ float emitter_profile(int row, float theta) {
     return mix(a, b, x - float(i));
 }
 
-void main() {
-    vec3 P = v_position_mm;
-    vec3 N = normalize(v_normal);
-    vec3 V = normalize(u_eye_mm - P);
-    if (dot(N, V) < 0.0) {
-        N = -N;
-    }
-
-    vec4 r0, r1, r2, r3;
-    reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
-    o_radiance0 = r0 * v_irradiance0 * INV_PI;
-    o_radiance1 = r1 * v_irradiance1 * INV_PI;
-    o_radiance2 = r2 * v_irradiance2 * INV_PI;
-    o_radiance3 = r3 * v_irradiance3 * INV_PI;
-
-    if (u_specular_weight <= 0.0 || u_emitter_count == 0) {
-        return;
-    }
+// GGX highlights of every emitter (LTC), added to the four band blocks.
+void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l2, inout vec4 l3) {
     float cos_v = clamp(dot(N, V), 1e-4, 1.0);
     vec4 t1 = ltc_fetch(u_ltc_minv, u_roughness, cos_v);
     vec4 t2 = ltc_fetch(u_ltc_mag, u_roughness, cos_v);
@@ -221,8 +214,35 @@ void main() {
         s2 += k * emitter_texel(e, 6);
         s3 += k * emitter_texel(e, 7);
     }
-    o_radiance0 += lobe * s0;
-    o_radiance1 += lobe * s1;
-    o_radiance2 += lobe * s2;
-    o_radiance3 += lobe * s3;
+    l0 += lobe * s0;
+    l1 += lobe * s1;
+    l2 += lobe * s2;
+    l3 += lobe * s3;
+}
+
+void main() {
+    vec3 P = v_position_mm;
+    vec3 N = normalize(v_normal);
+    vec3 V = normalize(u_eye_mm - P);
+    if (dot(N, V) < 0.0) {
+        N = -N;
+    }
+
+    vec4 r0, r1, r2, r3;
+    reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
+    vec4 l0 = r0 * v_irradiance0 * INV_PI;
+    vec4 l1 = r1 * v_irradiance1 * INV_PI;
+    vec4 l2 = r2 * v_irradiance2 * INV_PI;
+    vec4 l3 = r3 * v_irradiance3 * INV_PI;
+    if (u_specular_weight > 0.0 && u_emitter_count > 0) {
+        specular(P, N, V, l0, l1, l2, l3);
+    }
+#if SHADE_TO_DISPLAY
+    o_rgba = vec4(dither8(display_drive(spectral_to_xyz(l0, l1, l2, l3)).rgb, ivec2(gl_FragCoord.xy)), 1.0);
+#else
+    o_radiance0 = l0;
+    o_radiance1 = l1;
+    o_radiance2 = l2;
+    o_radiance3 = l3;
+#endif
 }

@@ -2,8 +2,19 @@
 // Booth surfaces and the sample: booth millimetres → clip space.  Carries the
 // band irradiance of the vertex (16 bands as 4 vec4 blocks, W·m⁻²·nm⁻¹) to the
 // fragment shaders, which interpolate it across the triangle.
+//
+// VERTEX_XYZ 1 (the realtime schedule's diffuse booth surfaces; include: lib_spectral.glsl):
+// the diffuse radiance ρ_b·E_b/π of the vertex's 16 bands is taken to XYZ here and XYZ is
+// interpolated instead.  Radiance, and so XYZ, is linear in the irradiance and the material
+// is constant over a triangle, so interpolating XYZ gives the XYZ of the interpolated bands:
+// the same image for 3 varyings instead of 16.
 precision highp float;
 precision highp int;
+precision highp sampler2D;
+
+#ifndef VERTEX_XYZ
+#define VERTEX_XYZ 0
+#endif
 
 in vec3 a_position_mm;
 in vec3 a_normal;
@@ -17,6 +28,10 @@ in vec4 a_irradiance3;
 uniform mat4 u_view_proj;
 uniform mat4 u_model;   // rigid transform (identity when geometry is placed on the CPU)
 
+#if VERTEX_XYZ
+uniform sampler2D u_materials;   // row = material index, texel k = bands 4k..4k+3
+out vec3 v_xyz;
+#else
 out vec3 v_position_mm;
 out vec3 v_normal;
 out vec2 v_uv;
@@ -25,9 +40,18 @@ out vec4 v_irradiance0;
 out vec4 v_irradiance1;
 out vec4 v_irradiance2;
 out vec4 v_irradiance3;
+#endif
 
 void main() {
     vec4 p = u_model * vec4(a_position_mm, 1.0);
+#if VERTEX_XYZ
+    int m = int(a_material + 0.5);
+    const float INV_PI = 0.31830988618379067;
+    v_xyz = spectral_to_xyz(texelFetch(u_materials, ivec2(0, m), 0) * a_irradiance0 * INV_PI,
+                            texelFetch(u_materials, ivec2(1, m), 0) * a_irradiance1 * INV_PI,
+                            texelFetch(u_materials, ivec2(2, m), 0) * a_irradiance2 * INV_PI,
+                            texelFetch(u_materials, ivec2(3, m), 0) * a_irradiance3 * INV_PI);
+#else
     v_position_mm = p.xyz;
     v_normal = mat3(u_model) * a_normal;
     v_uv = a_uv;
@@ -36,5 +60,6 @@ void main() {
     v_irradiance1 = a_irradiance1;
     v_irradiance2 = a_irradiance2;
     v_irradiance3 = a_irradiance3;
+#endif
     gl_Position = u_view_proj * p;
 }

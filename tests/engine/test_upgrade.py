@@ -1,6 +1,5 @@
 """`version:` upgrade passes run before validation."""
 
-import pytest
 
 from lbscene.engine import load as load_mod
 from lbscene.engine.load import load_document

@@ -137,9 +137,57 @@ def test_shader_files_are_glsl_es_300():
 
     sources = shader_sources()
     assert {"surface.vert", "fullscreen.vert", "booth.frag", "sample.frag", "spectral_to_xyz.frag",
-            "display.frag", "dither.frag", "resolve.frag"} <= set(sources)
+            "display.frag", "dither.frag", "resolve.frag", "background.frag", "lib_spectral.glsl",
+            "lib_display.glsl", "lib_dither.glsl"} <= set(sources)
     for name, src in sources.items():
-        assert src.startswith("#version 300 es\n"), name
+        if name.endswith(".glsl"):
+            # chunks go after the stage file's version line
+            assert not any(line.lstrip().startswith("#version") for line in src.splitlines()), name
+        else:
+            assert src.startswith("#version 300 es\n"), name
         # desktop-only or GLSL ES 1.00 constructs that WebGL2 would reject
         for bad in ("gl_FragColor", "texture2D(", "#version 330", "#extension", "layout(binding"):
             assert bad not in src, (name, bad)
+
+
+def test_every_program_names_existing_chunks(graph):
+    from lbscene.runtimes.graph import SHADER_DIR, compose_shader
+
+    for p in graph["passes"]:
+        for item in p.get("draws", [p]):
+            prog = item["program"]
+            for chunk in prog.get("include", []) + prog.get("vertex_include", []):
+                assert chunk.endswith(".glsl") and (SHADER_DIR / chunk).is_file(), chunk
+            src = compose_shader((SHADER_DIR / prog["fragment"]).read_text(), [("A", 1)],
+                                 prog.get("include", []))
+            assert src.startswith("#version 300 es\n#define A 1\n")
+            assert sum(line.lstrip().startswith("#version") for line in src.splitlines()) == 1
+
+
+def test_schedules():
+    from lbscene.runtimes.graph import SCHEDULES
+
+    assert SCHEDULES["analysis"] == ["surfaces", "spectral_to_xyz", "display", "dither"]
+    assert SCHEDULES["deferred"] == ["surfaces", "resolve"]
+    assert SCHEDULES["realtime"] == ["shade_display"]
+
+
+@pytest.mark.parametrize("projection", ["equirect", "cube"])
+def test_environment_irradiance_of_a_uniform_sky(projection):
+    """Uniform radiance L from every direction gives the irradiance π·L on any plane."""
+    from lbscene.bakers.products import cube_directions, equirect_directions
+    from lbscene.runtimes.bake import environment_irradiance
+
+    shape = (64, 128) if projection == "equirect" else (32, 6 * 32)
+    data = np.ones(shape + (2,)) * np.array([0.5, 2.0])
+    for normal in ([0, 0, 1], [0, -1, 1], [1, 2, -3]):
+        e = environment_irradiance(data, projection, (0, 1, 0), (0, 0, 1), normal)
+        np.testing.assert_allclose(e, np.pi * np.array([0.5, 2.0]), rtol=0.01)
+    # only the upper hemisphere lit: a horizontal plane facing up sees all of it, one facing
+    # down none of it
+    dirs = (equirect_directions(128) if projection == "equirect" else cube_directions(32))
+    upper = np.where(dirs[..., 2:3] > 0, data, 0.0)
+    np.testing.assert_allclose(environment_irradiance(upper, projection, (0, 1, 0), (0, 0, 1), [0, 0, 1]),
+                               np.pi * np.array([0.5, 2.0]), rtol=0.01)
+    np.testing.assert_allclose(environment_irradiance(upper, projection, (0, 1, 0), (0, 0, 1), [0, 0, -1]),
+                               0.0, atol=1e-9)

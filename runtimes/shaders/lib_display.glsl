@@ -1,0 +1,78 @@
+// lbscene shader library (a GLSL ES 3.00 chunk without #version): the display model.
+//   display XYZ  = exposure · XYZ                      (cd·m⁻²)
+//   linear RGB   = M · (display XYZ − offset)          offset: black level + reflected ambient
+//   drive        = tone⁻¹(linear RGB)                  sRGB piecewise, GOG or a LUT
+// Out of gamut (a linear channel outside 0..1): GAMUT_MAPPING 1 (default) moves the colour
+// toward the display's grey of the same luminance until it fits (lbscene.engine.colour.
+// display_model's 'chroma' mapping), 0 clips each channel; the largest excess is returned
+// in .a so the runtime can report it.
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+
+#ifndef TONE_KIND
+#define TONE_KIND 0                 // 0 sRGB piecewise, 1 GOG, 2 LUT
+#endif
+#ifndef GAMUT_MAPPING
+#define GAMUT_MAPPING 1             // 0 clip, 1 chroma (constant luminance toward the neutral)
+#endif
+
+uniform float u_exposure;
+uniform vec3 u_xyz_offset;
+uniform mat3 u_xyz_to_rgb;
+uniform vec4 u_tone_params[3];      // GOG per channel: (gain, offset, gamma, 0): L = (gain·d + offset)^gamma
+uniform sampler2D u_tone_lut;       // (size × 1): drive for linear value i/(size − 1), per channel
+uniform int u_tone_lut_size;
+uniform float u_inv_y_span;         // 1 / (Y_white − Y_black) of the display, cd/m²
+
+float srgb_encode(float x) {
+    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+}
+
+float gog_inverse(float l, vec4 p) {
+    // d = (l^(1/γ) − offset) / gain
+    return (pow(max(l, 0.0), 1.0 / p.z) - p.y) / p.x;
+}
+
+float lut_inverse(float l, int channel) {
+    float x = clamp(l, 0.0, 1.0) * float(u_tone_lut_size - 1);
+    int i0 = min(int(floor(x)), u_tone_lut_size - 2);
+    float t = x - float(i0);
+    float a = texelFetch(u_tone_lut, ivec2(i0, 0), 0)[channel];
+    float b = texelFetch(u_tone_lut, ivec2(i0 + 1, 0), 0)[channel];
+    return mix(a, b, t);
+}
+
+// Absolute XYZ (Y in cd·m⁻²) → (drive values 0..1, out-of-gamut excess ≥ 0).
+vec4 display_drive(vec3 xyz_abs) {
+    vec3 xyz = xyz_abs * u_exposure;
+    vec3 lin = u_xyz_to_rgb * (xyz - u_xyz_offset);
+    float excess = max(max(max(-lin.r, -lin.g), -lin.b), max(max(lin.r, lin.g), lin.b) - 1.0);
+#if GAMUT_MAPPING == 1
+    if (excess > 1e-6) {
+        // chroma mapping: toward the grey of the same luminance until every channel fits
+        float g = clamp((xyz.y - u_xyz_offset.y) * u_inv_y_span, 0.0, 1.0);
+        vec3 diff = lin - vec3(g);
+        float s = 1.0;
+        if (lin.r > 1.0) { s = min(s, (1.0 - g) / diff.r); }
+        if (lin.r < 0.0) { s = min(s, g / -diff.r); }
+        if (lin.g > 1.0) { s = min(s, (1.0 - g) / diff.g); }
+        if (lin.g < 0.0) { s = min(s, g / -diff.g); }
+        if (lin.b > 1.0) { s = min(s, (1.0 - g) / diff.b); }
+        if (lin.b < 0.0) { s = min(s, g / -diff.b); }
+        lin = vec3(g) + clamp(s, 0.0, 1.0) * diff;
+    }
+#endif
+    lin = clamp(lin, 0.0, 1.0);
+    // TONE_KIND is a compile-time constant (the runtime prepends #define TONE_KIND n for the
+    // display's model): a branch on a uniform would run every branch on SIMD CPUs.
+#if TONE_KIND == 1
+    vec3 d = vec3(gog_inverse(lin.r, u_tone_params[0]), gog_inverse(lin.g, u_tone_params[1]),
+                  gog_inverse(lin.b, u_tone_params[2]));
+#elif TONE_KIND == 2
+    vec3 d = vec3(lut_inverse(lin.r, 0), lut_inverse(lin.g, 1), lut_inverse(lin.b, 2));
+#else
+    vec3 d = vec3(srgb_encode(lin.r), srgb_encode(lin.g), srgb_encode(lin.b));
+#endif
+    return vec4(clamp(d, 0.0, 1.0), max(excess, 0.0));
+}
