@@ -34,7 +34,7 @@ A target is out of gamut when a linear channel of ``rgb`` leaves [0, 1]
     CIE 1931 xy diagram (constant dominant wavelength) — only chroma is lost.
     Targets darker than the floor (ambient reflection + black) become black;
     brighter than white become white.
-``"clip"`` — each channel clipped to [0, 1] (what ``runtimes/shaders/display.frag``
+``"clip"`` — each channel clipped to [0, 1] (what ``runtimes/shaders/lib_display.glsl``
     does today).
 
 The report (:class:`GamutReport`) counts the out-of-gamut items and says by
@@ -446,7 +446,7 @@ def load_display(path, *, mapping: Literal["chroma", "clip"] = "chroma") -> Disp
 
 
 #: GLSL ES 3.00 functions mirroring :meth:`DisplayModel.xyz_to_drive` (uniform names as in
-#: ``runtimes/shaders/display.frag`` plus ``u_inv_y_span`` and ``u_gamut_mapping``).
+#: ``runtimes/shaders/lib_display.glsl`` plus ``u_inv_y_span`` and ``u_gamut_mapping``).
 GLSL_DISPLAY_SOURCE = r"""
 uniform mat3 u_xyz_to_rgb;          // xyz_to_rgb_column_major
 uniform vec3 u_xyz_offset;          // black level + reflected ambient, cd/m²

@@ -16,10 +16,11 @@ each threshold occurs exactly once per tile, so any constant level is
 reproduced exactly on average over one tile.
 
 The realtime runtime mirrors :func:`dither_quantise` in
-``runtimes/shaders/dither.frag``: the mask is tiled from the pixel (x, y)
+``runtimes/shaders/lib_dither.glsl``: the mask is tiled from the pixel (x, y)
 = (column, row), and channel c reads it at the offset
 :func:`channel_offsets_xy` ``[c]`` (pixels, x then y), so the
-three channels' errors are not correlated.  The shader indexes by
+three channels' errors are not correlated (the runtime stores the shifted
+masks in the noise texture's G and B channels: one texel read per pixel).  The shader indexes by
 ``gl_FragCoord`` (origin at the bottom-left), so it reproduces
 :func:`dither_quantise` bit for bit on an image whose row 0 is the bottom row
 (the order ``glReadPixels`` returns); flip a top-row-first image before and
