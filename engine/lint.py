@@ -31,7 +31,7 @@ from .diagnostics import Diagnostic, LbsceneUserError, Severity
 from .load import LoadedDocument
 from .spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 
-__all__ = ["lint_booth", "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
+__all__ = ["lint_booth", "spectrum_coverage", "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
 
 #: Illuminance ranges at the viewing plane by viewing standard.
 ILLUMINANCE_RANGES_LX = {
@@ -54,8 +54,11 @@ def _inside(p, booth: Booth, margin: float = 0.0) -> bool:
             and -t + margin <= z <= h - margin + t)
 
 
-def _spec_coverage(spec, doc: LoadedDocument) -> tuple[float, float] | None:
-    """Wavelength range a tabulated spectrum covers (None: analytic or dataset)."""
+def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
+    """Wavelength range a tabulated spectrum covers (None: analytic or dataset).
+
+    ``resolve`` turns a file reference into a path (``LoadedDocument.resolve``).
+    """
     if spec.type == "inline":
         return spec.wavelengths_nm[0], spec.wavelengths_nm[-1]
     if spec.type == "csv":
@@ -65,7 +68,7 @@ def _spec_coverage(spec, doc: LoadedDocument) -> tuple[float, float] | None:
         from .yamlio import read_text_bounded
         from .spectra import MAX_CSV_BYTES
 
-        text = read_text_bounded(doc.resolve(spec.path), spec.path, MAX_CSV_BYTES)
+        text = read_text_bounded(resolve(spec.path), spec.path, MAX_CSV_BYTES)
         rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
         try:
             col = [c.strip() for c in rows[0]].index("wavelength_nm")
@@ -201,7 +204,7 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
     def check_spectrum(spec, kind, path, what):
         cov = None
         try:
-            cov = _spec_coverage(spec, doc)
+            cov = spectrum_coverage(spec, doc.resolve)
             values = evaluate_spectrum(spec, doc.resolve, kind, display=what)
         except LbsceneUserError as exc:
             diags.extend(exc.diagnostics)

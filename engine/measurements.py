@@ -263,23 +263,6 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
     return data, diags
 
 
-def _spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
-    if spec.type == "inline":
-        return spec.wavelengths_nm[0], spec.wavelengths_nm[-1]
-    if spec.type == "csv":
-        from .yamlio import read_text_bounded
-
-        text = read_text_bounded(resolve(spec.path), spec.path, 16 * 1024 * 1024)
-        rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
-        try:
-            col = [c.strip() for c in rows[0]].index("wavelength_nm")
-            wl = [float(r[col]) for r in rows[1:]]
-            return min(wl), max(wl)
-        except (ValueError, IndexError):
-            return None
-    return None
-
-
 def _tile_column(spec, resolve):
     """For a CSV radiance spec without `column:`, prefer a column named 'radiance'."""
     if spec.type != "csv" or spec.column is not None:
@@ -405,7 +388,9 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
         except LbsceneUserError as exc:
             bag.extend(exc.diagnostics)
         else:
-            cov = _spectrum_coverage(spec, doc.resolve)
+            from .lint import spectrum_coverage
+
+            cov = spectrum_coverage(spec, doc.resolve)
             covered = (REFERENCE_WAVELENGTHS_NM >= cov[0]) & (REFERENCE_WAVELENGTHS_NM <= cov[1]) \
                 if cov else rad > 0
             vis = refl[(REFERENCE_WAVELENGTHS_NM >= 390) & (REFERENCE_WAVELENGTHS_NM <= 710)]
