@@ -315,7 +315,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         if turning:
             for geo in ir.geometries:
                 tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
-                                    centre_mm=pf.centre_mm)
+                                    centre_mm=pf.pivot_mm)
                 M = tr.matrix()[:3, :3]
                 env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
                          geo.name, {LUMINAIRE_GROUP: tr}, [])
@@ -325,7 +325,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
                 for geo in ir.geometries:
                     if geo.platform_rotation_deg:
                         tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg),
-                                            centre_mm=pf.centre_mm)
+                                            centre_mm=pf.pivot_mm)
                         normals.append((f"geo:{geo.name}", tr.matrix()[:3, :3] @ np.array([0.0, 0.0, 1.0])))
             env_pair("", np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), None, {}, normals)
     if maps:

@@ -361,6 +361,7 @@ def compile_loaded(doc: LoadedDocument, grid: BandGrid = DEFAULT_GRID) -> SceneI
         p = booth.platform
         platform = IRPlatform(centre_mm=p.centre_mm, size_mm=p.size_mm,
                               rotation_axis=_unit(p.rotation_axis),
+                              pivot_mm=p.pivot_mm if p.pivot_mm is not None else p.centre_mm,
                               illumination_fixed_to_platform=p.illumination_fixed_to_platform,
                               illumination_angle_deg=p.illumination_angle_deg)
     ir = SceneIR(

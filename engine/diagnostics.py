@@ -66,6 +66,7 @@ CODES: dict[str, str] = {
     "LB305": "lighting configuration switches on no lamp",
     "LB306": "sample or observer outside the booth",
     "LB307": "effect refers to something the booth does not define",
+    "LB308": "a viewing geometry turns the platform out of the booth",
     "LB310": "illuminance outside ASTM D1729 / ISO 3668 / ISO 3664 recommendations",
     "LB311": "provenance marks values as estimates",
     "LB400": "measurement file: missing or unexpected column",

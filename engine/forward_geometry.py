@@ -46,6 +46,10 @@ __all__ = [
     "Rectangle",
     "mesh_triangles",
     "segments_blocked",
+    "pyramids_clear_of",
+    "hidden_from_apex",
+    "coplanar_convex_faces",
+    "segments_blocked_by_polygon",
     "visibility_matrix",
 ]
 
@@ -498,6 +502,57 @@ def _segments_hit_box(a: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return t0 <= t9
 
 
+def pyramids_clear_of(apex: np.ndarray, quads: np.ndarray, hull: np.ndarray,
+                      chunk: int = 100_000) -> np.ndarray:
+    """Boolean ``(K,)``: is the pyramid ``apex[k]`` + ``quads[k]`` ``(K, 4, 3)`` certainly apart
+    from the convex hull of the points ``hull`` ``(V, 3)``?
+
+    A separating-axis test on the world axes, the pyramid's four side planes and
+    its base plane: True only where one of them separates the two convex sets, so
+    no segment from the apex to a point of the quad can meet anything inside the
+    hull (a mesh's triangles).  False means "maybe": the caller tests segments.
+    Used to skip the point-by-point visibility of (receiver, patch) pairs that
+    pass nowhere near a mesh.
+
+    >>> hull = np.array([[0.0, 0, 5], [1, 0, 5], [0, 1, 5], [0, 0, 6]])
+    >>> quad = np.array([[[-1.0, -1, 10], [1, -1, 10], [1, 1, 10], [-1, 1, 10]]])
+    >>> pyramids_clear_of(np.zeros((2, 3)), np.repeat(quad, 2, axis=0) + [[[0, 0, 0]], [[50, 0, 0]]],
+    ...                   hull).tolist()
+    [False, True]
+    """
+    apex = np.atleast_2d(np.asarray(apex, float))
+    quads = np.asarray(quads, float)
+    hull = np.asarray(hull, float).reshape(-1, 3)
+    out = np.zeros(len(apex), bool)
+    if len(apex) == 0 or len(hull) == 0:
+        return out
+    lo, hi = hull.min(axis=0), hull.max(axis=0)
+    q = [quads[:, i] for i in range(4)]
+    # element-wise min/max over the five points: reducing a length-5 axis is slower
+    p_lo = np.minimum(np.minimum(apex, q[0]), np.minimum(np.minimum(q[1], q[2]), q[3]))
+    p_hi = np.maximum(np.maximum(apex, q[0]), np.maximum(np.maximum(q[1], q[2]), q[3]))
+    out = ((p_hi < lo) | (p_lo > hi)).any(axis=1)
+    todo = np.nonzero(~out)[0]
+    for s in range(0, todo.size, chunk):
+        k = todo[s:s + chunk]
+        A = apex[k]
+        Q = [qi[k] - A for qi in q]                                         # corners from the apex
+        # project both sets on each axis (from the apex): the four side planes' normals
+        # (plane i holds the apex, q_i and q_i+1, so the pyramid spans 0 and the other two
+        # corners) and the base plane's (the pyramid spans 0 and the quad's height)
+        sep = np.zeros(len(k), bool)
+        axes = [(np.cross(Q[i], Q[(i + 1) % 4]), (Q[(i + 2) % 4], Q[(i + 3) % 4])) for i in range(4)]
+        axes.append((np.cross(Q[2] - Q[0], Q[3] - Q[1]), (Q[0],)))
+        for n, far in axes:
+            vals = [np.einsum("kc,kc->k", n, f) for f in far]
+            p_lo = np.minimum(0.0, np.minimum.reduce(vals))
+            p_hi = np.maximum(0.0, np.maximum.reduce(vals))
+            h = n @ hull.T - np.einsum("kc,kc->k", n, A)[:, None]             # (K, V)
+            sep |= (h.min(axis=1) > p_hi) | (h.max(axis=1) < p_lo)
+        out[k] = sep
+    return out
+
+
 def segments_blocked(a: np.ndarray, b: np.ndarray, tris: np.ndarray, *, t_eps: float = 1e-9,
                      chunk: int = 200_000) -> np.ndarray:
     """Boolean ``(K,)``: does any triangle of ``tris`` ``(T, 3, 3)`` cross segment ``a[k]→b[k]``?
@@ -561,6 +616,150 @@ def segments_blocked(a: np.ndarray, b: np.ndarray, tris: np.ndarray, *, t_eps: f
             inside = (bv >= -tol) & (bw >= -tol) & (bv + bw <= 1.0 + tol)
             hit[idx[inside]] = True
         out[s + cand[hit]] = True
+    return out
+
+
+def hidden_from_apex(apex: np.ndarray, pts: np.ndarray, tris: np.ndarray, *,
+                     t_eps: float = 1e-9) -> np.ndarray:
+    """Boolean ``(N,)``: does any triangle of ``tris`` ``(T, 3, 3)`` cross the segment
+    ``apex → pts[n]``?  The same answer as :func:`segments_blocked` for segments that
+    share their first end, computed as one matrix product.
+
+    Seen from the apex, a triangle is a cone bounded by three planes through the
+    apex; a segment crosses the triangle when its far end lies inside that cone
+    (edges inclusive) and strictly beyond the triangle's plane.  Those are four
+    affine functions of the end point per triangle, so all ``N × T`` tests are a
+    ``(N, 3) @ (3, 4T)`` product and comparisons: a receiver gathering light from
+    thousands of patch points tests them this way about ten times faster than
+    segment by segment.  A triangle whose plane holds the apex never blocks (like
+    an end on the plane in :func:`segments_blocked`).
+
+    >>> tri = np.array([[[-1.0, -1, 5], [1, -1, 5], [0, 1, 5]]])
+    >>> hidden_from_apex(np.zeros(3), np.array([[0, 0, 10.0], [5, 0, 10], [0, 0, 4]]), tri).tolist()
+    [True, False, False]
+    """
+    apex = np.asarray(apex, float).reshape(3)
+    pts = np.atleast_2d(np.asarray(pts, float))
+    tris = np.asarray(tris, float).reshape(-1, 3, 3)
+    if len(tris) == 0 or len(pts) == 0:
+        return np.zeros(len(pts), bool)
+    r = tris - apex                                              # corners seen from the apex
+    edge_n = np.cross(r, np.roll(r, -1, axis=1))                 # (T, 3, 3) planes through the apex
+    triple = np.einsum("tc,tc->t", r[:, 0], edge_n[:, 1])        # orientation of the cone
+    plane_n = np.cross(r[:, 1] - r[:, 0], r[:, 2] - r[:, 0])     # (T, 3)
+    h_apex = -np.einsum("tc,tc->t", plane_n, r[:, 0])            # apex height over the plane
+    keep = (np.abs(triple) > 0.0) & (np.abs(h_apex) > 0.0)
+    if not keep.any():
+        return np.zeros(len(pts), bool)
+    edge_n = edge_n[keep] * np.sign(triple[keep])[:, None, None]
+    edge_n /= np.maximum(np.linalg.norm(edge_n, axis=2, keepdims=True), _EPS)
+    plane_n, h_apex = plane_n[keep], h_apex[keep]
+    # beyond the plane: the far end's height has the apex's opposite sign; scaled so that
+    # "beyond" reads positive, with the same t < 1 − t_eps margin as segments_blocked
+    beyond_n = -np.sign(h_apex)[:, None] * plane_n
+    T = len(plane_n)
+    # columns: edge plane 0 of every triangle, then edge 1, edge 2, then "beyond" (contiguous
+    # blocks: reducing over a length-3 axis instead is several times slower in numpy)
+    M = np.concatenate([edge_n[:, 0], edge_n[:, 1], edge_n[:, 2], beyond_n], axis=0).T   # (3, 4T)
+    d = pts - apex
+    S = d @ M                                                    # (N, 4T)
+    tol = -1e-12 * np.linalg.norm(d, axis=1)[:, None]
+    inside = np.minimum(np.minimum(S[:, :T], S[:, T:2 * T]), S[:, 2 * T:3 * T]) >= tol
+    ha = np.abs(h_apex)[None, :]
+    past = S[:, 3 * T:] > ha * (1.0 + t_eps)
+    return (inside & past).any(axis=1)
+
+
+def coplanar_convex_faces(tris: np.ndarray, tol_mm: float = 1e-6) -> list[np.ndarray]:
+    """The triangles ``(T, 3, 3)`` merged into convex planar polygons where they can be:
+    triangles in one plane that share an edge are joined while their union stays convex
+    (a mesh's rectangular face, two triangles, becomes one quad).  Returns a list of
+    ``(n, 3)`` vertex loops, counter-clockwise about their normal.
+
+    What one convex face hides from a point is a convex region, so a patch whose four
+    corners one face hides is hidden whole; a seam between two triangles would split
+    that test.
+
+    >>> quad = np.array([[[0.0, 0, 0], [1, 0, 0], [1, 1, 0]], [[0.0, 0, 0], [1, 1, 0], [0, 1, 0]]])
+    >>> [len(f) for f in coplanar_convex_faces(quad)]
+    [4]
+    """
+    from scipy.spatial import ConvexHull
+
+    tris = np.asarray(tris, float).reshape(-1, 3, 3)
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    area2 = np.linalg.norm(n, axis=1)
+    live = area2 > _EPS
+    tris, n, area2 = tris[live], n[live] / area2[live, None], area2[live]
+    # one orientation per plane: the normal's first non-zero component positive
+    lead = np.take_along_axis(n, np.argmax(np.abs(n) > 1e-9, axis=1)[:, None], axis=1)
+    n = n * np.sign(lead)
+    off = np.einsum("tc,tc->t", n, tris[:, 0])
+    keys = np.c_[np.round(n, 6), np.round(off / max(tol_mm * 1e3, 1e-9))]
+    _, group = np.unique(keys, axis=0, return_inverse=True)
+    faces = []
+    for g in range(group.max() + 1 if len(group) else 0):
+        idx = np.nonzero(group.ravel() == g)[0]
+        nrm = n[idx[0]]
+        u = np.cross(nrm, [1.0, 0, 0] if abs(nrm[0]) < 0.9 else [0, 1.0, 0])
+        u /= np.linalg.norm(u)
+        v = np.cross(nrm, u)
+        polys = [(tris[i], area2[i] / 2) for i in idx]
+        merged = True
+        while merged and len(polys) > 1:
+            merged = False
+            for i in range(len(polys)):
+                for j in range(i + 1, len(polys)):
+                    (pi, ai), (pj, aj) = polys[i], polys[j]
+                    shared = (np.linalg.norm(pi[:, None] - pj[None], axis=2) < tol_mm).sum()
+                    if shared < 2:
+                        continue
+                    pts = np.concatenate([pi, pj])
+                    hull = ConvexHull(np.c_[pts @ u, pts @ v])
+                    if abs(hull.volume - (ai + aj)) <= 1e-9 * (ai + aj) + tol_mm:
+                        polys[i] = (pts[hull.vertices], ai + aj)
+                        polys.pop(j)
+                        merged = True
+                        break
+                if merged:
+                    break
+        for poly, _ in polys:
+            # counter-clockwise about the plane's normal as stored (ConvexHull: CCW in (u, v))
+            if len(poly) == 3 and np.cross(poly[1] - poly[0], poly[2] - poly[0]) @ nrm < 0:
+                poly = poly[::-1]
+            faces.append(np.asarray(poly, float))
+    return faces
+
+
+def segments_blocked_by_polygon(a: np.ndarray, b: np.ndarray, poly: np.ndarray, *,
+                                t_eps: float = 1e-9) -> np.ndarray:
+    """Boolean ``(K,)``: does the convex planar polygon ``poly`` ``(n, 3)`` (either winding)
+    cross segment ``a[k] → b[k]``?  Same rules as :func:`segments_blocked`: strictly
+    between the ends, edges inclusive, ends on the plane never blocked.
+
+    >>> sq = np.array([[-1.0, -1, 5], [1, -1, 5], [1, 1, 5], [-1, 1, 5]])
+    >>> segments_blocked_by_polygon(np.zeros((2, 3)), np.array([[1, 1, 10.0], [3, 0, 10]]), sq).tolist()
+    [True, False]
+    """
+    a = np.atleast_2d(np.asarray(a, float))
+    b = np.atleast_2d(np.asarray(b, float))
+    poly = np.asarray(poly, float)
+    nrm = np.cross(poly[1] - poly[0], poly[2] - poly[0])
+    if np.linalg.norm(nrm) <= _EPS:
+        return np.zeros(len(a), bool)
+    da = (a - poly[0]) @ nrm
+    db = (b - poly[0]) @ nrm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = da / (da - db)
+    out = (da * db < 0.0) & (t > t_eps) & (t < 1.0 - t_eps)
+    idx = np.nonzero(out)[0]
+    x = a[idx] + t[idx, None] * (b[idx] - a[idx])
+    edges = np.roll(poly, -1, axis=0) - poly
+    side = np.einsum("ec,kec->ke", np.cross(edges, nrm), x[:, None, :] - poly[None, :, :])
+    # edge normals point outward for a counter-clockwise loop, inward otherwise
+    scale = 1e-12 * np.linalg.norm(edges, axis=1) * np.linalg.norm(nrm)
+    inside = (side <= scale).all(axis=1) | (side >= -scale).all(axis=1)
+    out[idx] = inside
     return out
 
 

@@ -51,7 +51,7 @@ __all__ = [
     "canonical_json",
 ]
 
-IR_VERSION = 1
+IR_VERSION = 2                          # 2: platform pivot_mm
 
 Vec3 = tuple[float, float, float]
 
@@ -233,6 +233,7 @@ class IRPlatform(_IR):
     centre_mm: Vec3
     size_mm: tuple[float, float]
     rotation_axis: Vec3
+    pivot_mm: Vec3                      # a point of the rotation axis
     illumination_fixed_to_platform: bool
     illumination_angle_deg: float | None
 

@@ -193,6 +193,27 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
                   expected="inside the interior box "
                            "(|x| ≤ width/2, |y| ≤ depth/2, 0 ≤ z ≤ height)")
                 break
+    pf = booth.platform
+    for i, g in enumerate(booth.geometries):
+        if pf is None or not g.platform_rotation_deg:
+            continue
+        # the platform's corners turned about its axis for this geometry must stay inside
+        a = np.asarray(pf.rotation_axis, float)
+        a = a / np.linalg.norm(a)
+        t = np.radians(g.platform_rotation_deg)
+        K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
+        c = np.asarray(pf.centre_mm, float)
+        o = np.asarray(pf.pivot_mm if pf.pivot_mm is not None else pf.centre_mm, float)
+        sx, sy = pf.size_mm[0] / 2, pf.size_mm[1] / 2
+        for dx, dy in ((-sx, -sy), (sx, -sy), (sx, sy), (-sx, sy)):
+            q = R @ (c + [dx, dy, 0.0] - o) + o
+            if not _inside(q, booth):
+                E("LB308", f"geometry '{g.name}' turns the platform out of the booth", "geometries", i,
+                  "platform_rotation_deg", value=f"corner at {np.round(q, 1).tolist()} mm",
+                  expected="a platform inside the interior at every geometry (raise it, or turn it "
+                           "about an edge with platform.pivot_mm)")
+                break
     if not _inside(booth.sample_position_mm, booth):
         E("LB306", "sample position is outside the booth", "sample_position_mm",
           value=str(list(booth.sample_position_mm)), expected="a point inside the interior")

@@ -27,7 +27,12 @@ sides too), and the mesh blocks light on every path the solve uses — lamp
 point → patch point (first-order light), patch centre → patch centre (form
 factors, 0/1) and receiver → 36 low-discrepancy points of each patch, 144
 where the receiver sees the patch only partly (gather: the light of a
-cavity reaches the booth through its aperture's edges).  Leaving a white
+cavity reaches the booth through its aperture's edges).  The gather tests
+points only where it must: a (receiver, patch) pair whose pyramid misses
+every mesh's convex hull is seen whole, one whose four corners a single
+convex mesh face hides is hidden whole (both exact), and the rest are
+tested as one matrix product per receiver (on the BYK's ~500 runtime
+receivers × 2678 patches: 43 s → 8 s, the same fractions).  Leaving a white
 cavity out overstated the booth's first-order light on walls and ceiling
 (the lamp's back light reached them straight through the cavity) and left
 out the light the cavity reflects through its aperture: on the BYK grid the
@@ -42,8 +47,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .forward_geometry import (Patches, mesh_patches, mesh_triangles, polygon_form_factor,
-                               quad_r2_points, quad_subpoints, segments_blocked, visibility_matrix)
+from .forward_geometry import (Patches, coplanar_convex_faces, hidden_from_apex, mesh_patches,
+                               mesh_triangles, polygon_form_factor, pyramids_clear_of, quad_r2_points,
+                               quad_subpoints, segments_blocked, segments_blocked_by_polygon,
+                               visibility_matrix)
 
 __all__ = ["RadiosityTransport", "radiosity_transport", "patch_form_factors", "interior_patches",
            "mesh_patch_size_mm", "BOX_ROLES"]
@@ -144,6 +151,9 @@ class RadiosityTransport:
             blockers = mesh_triangles(ir) if p.meshes else np.zeros((0, 3, 3))
             ctx.cache[key] = (patches, patch_form_factors(patches, blockers=blockers), blockers)
         self.patches, self.F, self.blockers = ctx.cache[key]
+        # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
+        # convex hull need no visibility points
+        self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
         mats = ir.materials
         rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
             len(self.patches), -1)
@@ -231,26 +241,53 @@ class RadiosityTransport:
         polys = self.patches.polys
         nrm = self.patches.normals
         seen = G > 0
+        faces = self.ctx.memo("mesh_faces", (tris,), lambda: coplanar_convex_faces(tris), limit=4)
+        n_sub, n_fine = GATHER_SUB ** 2, GATHER_FINE ** 2
+        # the R2 points are a sequence: the first n_sub of the fine set are the coarse set, so
+        # the fine pass tests only the points it adds
+        pts_all, w_fine = quad_r2_points(polys, n_fine)
+        pts_all = pts_all + NUDGE_MM * nrm[:, None, :]
+        w_sub = quad_r2_points(polys, n_sub)[1]
 
-        def fractions(rows, cols, k):
-            pts, w = quad_r2_points(polys, k * k)                        # (P, k², 3)
-            pts = pts + NUDGE_MM * nrm[:, None, :]
-            out = np.empty(len(rows))
-            step = max(1, 400_000 // (k * k))
-            for s in range(0, len(rows), step):
-                r, c = rows[s:s + step], cols[s:s + step]
-                a = np.repeat(P_rx[r], k * k, axis=0)
-                hidden = segments_blocked(a, pts[c].reshape(-1, 3), tris).reshape(len(r), k * k)
-                out[s:s + step] = ((~hidden) * w[c]).sum(axis=1)
+        def hidden_points(rows, cols, first, count):
+            """(pairs, count) hidden flags of points first … first+count of each pair's patch."""
+            out = np.empty((len(rows), count), bool)
+            pts = pts_all[:, first:first + count]
+            # pairs come sorted by receiver: each receiver tests its patches' points at once
+            starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if rows.size else rows
+            for s, e in zip(starts, np.r_[starts[1:], rows.size].astype(int)):
+                c = cols[s:e]
+                out[s:e] = hidden_from_apex(P_rx[rows[s]], pts[c].reshape(-1, 3), tris).reshape(len(c), count)
             return out
 
         def compute():
             V = np.ones(G.shape)
             rows, cols = np.nonzero(seen)
-            V[rows, cols] = fractions(rows, cols, GATHER_SUB)
-            part = np.nonzero(seen & (V > 0.0) & (V < 1.0))
-            if part[0].size:
-                V[part] = fractions(part[0], part[1], GATHER_FINE)
+            quads = polys + NUDGE_MM * nrm[:, None, :]
+            # 1. pairs whose pyramid (receiver + patch) misses every mesh's hull: seen whole
+            clear = np.ones(rows.size, bool)
+            for hull in self.hulls:
+                clear &= pyramids_clear_of(P_rx[rows], quads[cols], hull)
+            rows, cols = rows[~clear], cols[~clear]
+            # 2. pairs whose four corners one convex face hides: hidden whole (what a convex
+            #    face hides from a point is convex)
+            dark = np.zeros(rows.size, bool)
+            for f in faces:
+                h = np.ones(rows.size, bool)
+                for q in range(4):
+                    live = np.nonzero(h)[0]
+                    h[live] = segments_blocked_by_polygon(P_rx[rows[live]], quads[cols[live], q], f)
+                dark |= h
+            V[rows[dark], cols[dark]] = 0.0
+            rows, cols = rows[~dark], cols[~dark]
+            # 3. the rest point by point; pairs seen partly get the fine set
+            hid = hidden_points(rows, cols, 0, n_sub)
+            V[rows, cols] = ((~hid) * w_sub[cols]).sum(axis=1)
+            part = hid.any(axis=1) & ~hid.all(axis=1)
+            if part.any():
+                r, c = rows[part], cols[part]
+                more = hidden_points(r, c, n_sub, n_fine - n_sub)
+                V[r, c] = ((~np.c_[hid[part], more]) * w_fine[c]).sum(axis=1)
             return V
 
         return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), compute,

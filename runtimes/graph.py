@@ -142,7 +142,7 @@ def _illumination_centre(ir, lighting: str) -> np.ndarray:
 def _platform_frame(ir):
     if ir.platform is None:
         return np.zeros(3), np.array([1.0, 0.0, 0.0]), False
-    return (np.asarray(ir.platform.centre_mm, float), np.asarray(ir.platform.rotation_axis, float),
+    return (np.asarray(ir.platform.pivot_mm, float), np.asarray(ir.platform.rotation_axis, float),
             bool(ir.platform.illumination_fixed_to_platform))
 
 

@@ -403,6 +403,9 @@ class Platform(StrictModel):
     centre_mm: Vec3_mm = (0.0, 0.0, 0.0)
     size_mm: tuple[float, float] = Field(description="Platform extent (x, y) in mm.")
     rotation_axis: Direction = (1.0, 0.0, 0.0)
+    pivot_mm: Vec3_mm | None = Field(
+        None, description="A point of the rotation axis, in mm (default: centre_mm). A wedge "
+                          "viewing stand that rests on the floor turns about its front edge.")
     illumination_fixed_to_platform: bool = Field(
         False, description="The luminaire rotates with the platform (fixed illumination angle).")
     illumination_angle_deg: float | None = Field(None, ge=0, lt=90)

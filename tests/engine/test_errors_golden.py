@@ -92,6 +92,12 @@ CASES = {
     "bad_geometry_name": (GOOD + "geometries: [{name: 45as140}]\n",
                           "b/booth.yaml:18:21: error LB303: geometries.0.name: 45as140: aspecular angle "
                           "140° puts the observer 95° from the normal, below the sample plane"),
+    "platform_turned_out": (GOOD + "platform: {size_mm: [400, 300], rotation_axis: [1, 0, 0]}\n"
+                                   "geometries: [{name: 45as45, platform_rotation_deg: 45}]\n",
+                            "b/booth.yaml:19:52: error LB308: geometry '45as45' turns the platform out of "
+                            "the booth (got corner at [-200.0, -106.1, -106.1] mm; expected a platform "
+                            "inside the interior at every geometry (raise it, or turn it about an edge "
+                            "with platform.pivot_mm))"),
     "unsupported_version": (GOOD.replace("version: 1", "version: 7"),
                             "b/booth.yaml:1:10: error LB104: version: unsupported version 7; this lbscene "
                             "reads versions 1..1"),
