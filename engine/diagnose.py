@@ -15,6 +15,11 @@ already enables).  Each suspect gets
 * ``structure_after``: Moran's I of the residuals (nearest-neighbour
   weights): spatially organised residuals are a sign of missing physics.
 
+The enabled effects' parameters are refitted with each candidate (an earlier
+round's estimate may be biased by the effect still missing), except those the
+data cannot pin down (standard error over a quarter of their range): those
+are held at the booth's values, since refitting them cannot change a score.
+
 Verdict:
 
 ``none``
@@ -41,7 +46,8 @@ import numpy as np
 from .fit import FitProblem, FitResult, effect_parameter
 
 __all__ = ["Suspect", "Diagnosis", "diagnose", "consistent_with_noise", "effects_snippet",
-           "moran_i", "SIGNIFICANT", "TIE_MARGIN", "NoiseModel", "noise_model"]
+           "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
+           "noise_model"]
 
 #: BIC improvement a suspect needs to count at all (strong evidence on Kass–Raftery's scale).
 SIGNIFICANT = 10.0
@@ -49,6 +55,10 @@ SIGNIFICANT = 10.0
 TIE_MARGIN = 10.0
 #: χ²/dof consistency with noise: within this many standard deviations of 1.
 NOISE_Z = 3.0
+#: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
+#: margins; 1e-8 made weakly identified candidates (tube-end falloff: level and length) crawl
+#: along their valley for 400+ evaluations without changing the score.
+SCORING_TOLERANCE = 1e-4
 
 
 @dataclass
@@ -166,6 +176,10 @@ class Diagnosis:
     where: list[dict] = field(default_factory=list)
     structure_before: float = float("nan")
     consistent: bool = False
+    #: enabled effects' parameters refitted with every candidate, and those held at the booth's
+    #: values because these data cannot pin them (see _pinned_by_data)
+    refitted: list[str] = field(default_factory=list)
+    held: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict,
@@ -177,7 +191,9 @@ class Diagnosis:
                 "where_it_fails": self.where,
                 "base_chi2_per_dof": round(self.base.chi2 / self.base.dof, 4),
                 "structure_before": _r(self.structure_before),
-                "base_consistent_with_noise": self.consistent}
+                "base_consistent_with_noise": self.consistent,
+                "joint_parameters_refitted": self.refitted,
+                "joint_parameters_held": self.held}
 
 
 # --------------------------------------------------------------------------- snippets
@@ -237,6 +253,39 @@ def _enabled_fit_params(ir, lighting, effects, already) -> list:
             if fp.target not in names:
                 out.append(fp)
     return out
+
+
+#: A joint parameter is refitted only if the data pin it: its standard error at the start of the
+#: diagnosis (noise-limited, from the Jacobian) is below this fraction of its bounds' range.
+PINNED_FRACTION = 0.25
+
+
+def _pinned_by_data(meas, effects, free, joint, noise, cache) -> tuple[list, list]:
+    """Split the enabled effects' parameters into those these data pin down and those they
+    cannot (standard error ≥ :data:`PINNED_FRACTION` of the range at the current values).
+
+    A parameter the data cannot pin changes χ² by less than the noise anywhere in a wide
+    range: refitting it cannot change a suspect's score, but the optimiser wanders along it
+    (each step a new forward evaluation, e.g. new occlusion fractions for an aperture scale),
+    which made the X-Rite diagnosis take 15 s.  Those are held at the booth's values.
+    """
+    if not joint:
+        return joint, []
+    prob = FitProblem(meas, effects, list(free) + list(joint), noise.percent, noise.spectral_percent, cache)
+    x0 = np.array([prob.free[i].initial for i in prob.nl], float)
+    A, T, *_ = prob.components(x0)
+    scales = prob.scales_for(A, T)
+    r = prob.residuals(x0, scales)
+    chi2 = float(r @ r)
+    se, _, _ = prob._errors(x0, scales, chi2)
+    # _errors scales the covariance by χ²/dof (a model still missing an effect fits badly);
+    # what the data can pin is the noise-limited error
+    s = math.sqrt(max(chi2 / max(prob.n_residuals - len(prob.free), 1), 1e-12))
+    keep, held = [], []
+    for fp in joint:
+        e = se.get(fp.target, float("inf")) / s
+        (keep if e < PINNED_FRACTION * (fp.bounds[1] - fp.bounds[0]) else held).append(fp)
+    return keep, held
 
 
 def _coarsen(effects: dict) -> dict:
@@ -330,8 +379,10 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     joint = _enabled_fit_params(ir, lighting, effects, base_problem.free)
     # which joint parameters are affordable is decided by each effect's analytic cost model
     # (refit_cost_s), never by timing: the verdict must not depend on the machine's load
+    joint, held = _pinned_by_data(meas, effects, list(base_problem.free), joint, noise, cache)
     base_free = list(base_problem.free) + joint
-    base_fp = FitProblem(meas, effects, base_free, noise.percent, noise.spectral_percent, cache)
+    base_fp = FitProblem(meas, effects, base_free, noise.percent, noise.spectral_percent, cache,
+                         tolerance=SCORING_TOLERANCE)
     base = base_fp.solve()
     # every candidate refit starts from the base solution: the candidate's own parameters are the
     # only ones far from their optimum, so the refits need a few iterations instead of dozens
@@ -361,7 +412,8 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             progress(k, len(todo), eid)
         new_eff, free = candidate_config(ir, lighting, effects, eid, base_free,
                                          meas.known_output_groups)
-        prob = FitProblem(meas, new_eff, free, noise.percent, noise.spectral_percent, cache)
+        prob = FitProblem(meas, new_eff, free, noise.percent, noise.spectral_percent, cache,
+                          tolerance=SCORING_TOLERANCE)
         fit = prob.solve()
         bic = fit.chi2 + len(free) * logn
         params = {fp.name: fit.values[fp.target] for fp in free if fp.scope == "effect" and fp.ident == eid}
@@ -374,7 +426,8 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
         progress(len(todo), len(todo), "")
     suspects.sort(key=lambda s: -s.score)
 
-    d = Diagnosis("none", base, suspects, skipped, noise, structure_before=structure_before)
+    d = Diagnosis("none", base, suspects, skipped, noise, structure_before=structure_before,
+                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held])
     d.consistent = consistent_with_noise(base, **ctest)
     red = base.chi2 / base.dof
     d.where = _where(meas, base)

@@ -351,6 +351,9 @@ class FitProblem:
     spectral_noise_percent: float = DEFAULT_SPECTRAL_NOISE_PERCENT
     cache: dict = field(default_factory=dict)
     extra_points: object = None     # IlluminanceData of points to predict (not fitted)
+    #: least_squares' xtol and ftol: the user's fit converges tightly; the diagnosis, which only
+    #: needs χ² to a small fraction of a BIC unit, loosens it (see diagnose.SCORING_TOLERANCE)
+    tolerance: float = 1e-8
 
     def __post_init__(self):
         m = self.meas
@@ -502,7 +505,7 @@ class FitProblem:
                          lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
             sol = least_squares(self.residuals, x0, bounds=(lo, hi), method="trf",
                                 x_scale=np.maximum(hi - lo, 1e-9) * 0.1, diff_step=1e-4,
-                                xtol=1e-8, ftol=1e-8, max_nfev=200)
+                                xtol=self.tolerance, ftol=self.tolerance, max_nfev=200)
             A, T, *_ = self.components(sol.x)
             return self._result(sol.x, self.scales_for(A, T), bool(sol.success), str(sol.message),
                                 fitted=True)

@@ -154,10 +154,14 @@ class RadiosityTransport:
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
-        mats = ir.materials
-        rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
-            len(self.patches), -1)
-        self.rho = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
+        rk = key + ("rho", p.reflectance_scale)
+        if rk not in ctx.cache:
+            mats = ir.materials
+            rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
+                len(self.patches), -1)
+            ctx.cache[rk] = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
+        self.rho = ctx.cache[rk]
+        self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
         # transmits inter-reflected light with its regular transmittance
         self.plate_T = None
@@ -241,15 +245,9 @@ class RadiosityTransport:
         polys = self.patches.polys
         nrm = self.patches.normals
         seen = G > 0
-        faces = self.ctx.memo("mesh_faces", (tris,), lambda: coplanar_convex_faces(tris), limit=4)
         n_sub, n_fine = GATHER_SUB ** 2, GATHER_FINE ** 2
-        # the R2 points are a sequence: the first n_sub of the fine set are the coarse set, so
-        # the fine pass tests only the points it adds
-        pts_all, w_fine = quad_r2_points(polys, n_fine)
-        pts_all = pts_all + NUDGE_MM * nrm[:, None, :]
-        w_sub = quad_r2_points(polys, n_sub)[1]
 
-        def hidden_points(rows, cols, first, count):
+        def hidden_points(pts_all, rows, cols, first, count):
             """(pairs, count) hidden flags of points first … first+count of each pair's patch."""
             out = np.empty((len(rows), count), bool)
             pts = pts_all[:, first:first + count]
@@ -261,6 +259,12 @@ class RadiosityTransport:
             return out
 
         def compute():
+            faces = coplanar_convex_faces(tris)
+            # the R2 points are a sequence: the first n_sub of the fine set are the coarse set,
+            # so the fine pass tests only the points it adds
+            pts_all, w_fine = quad_r2_points(polys, n_fine)
+            pts_all = pts_all + NUDGE_MM * nrm[:, None, :]
+            w_sub = quad_r2_points(polys, n_sub)[1]
             V = np.ones(G.shape)
             rows, cols = np.nonzero(seen)
             quads = polys + NUDGE_MM * nrm[:, None, :]
@@ -281,12 +285,12 @@ class RadiosityTransport:
             V[rows[dark], cols[dark]] = 0.0
             rows, cols = rows[~dark], cols[~dark]
             # 3. the rest point by point; pairs seen partly get the fine set
-            hid = hidden_points(rows, cols, 0, n_sub)
+            hid = hidden_points(pts_all, rows, cols, 0, n_sub)
             V[rows, cols] = ((~hid) * w_sub[cols]).sum(axis=1)
             part = hid.any(axis=1) & ~hid.all(axis=1)
             if part.any():
                 r, c = rows[part], cols[part]
-                more = hidden_points(r, c, n_sub, n_fine - n_sub)
+                more = hidden_points(pts_all, r, c, n_sub, n_fine - n_sub)
                 V[r, c] = ((~np.c_[hid[part], more]) * w_fine[c]).sum(axis=1)
             return V
 
@@ -304,9 +308,14 @@ class RadiosityTransport:
         ``(unique rows (U, P[+1]), band → row index (B,), cache key)``."""
         from .forward import array_key
 
-        sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
-        uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
-        return uniq, inv.ravel(), (self.p.patch_size_mm, self.p.max_bounces, array_key(uniq))
+        ck = self._rho_key + ("classes", None if self.plate_T is None else array_key(self.plate_T))
+        hit = self.ctx.cache.get(ck)
+        if hit is None:        # np.unique over (B, P) rows: ~20 ms, once per reflectance set
+            sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
+            uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
+            hit = self.ctx.cache[ck] = (uniq, inv.ravel(),
+                                        (self.p.patch_size_mm, self.p.max_bounces, array_key(uniq)))
+        return hit
 
     def _neumann_terms(self, u) -> int | None:
         """Jacobi sweeps for a 1e-9 relative residual when the series converges fast, else None."""

@@ -83,6 +83,9 @@ def print_text(res, console) -> None:
         console.print(t)
     if d.skipped:
         console.print("not tested: " + "; ".join(f"{k} ({v})" for k, v in d.skipped.items()), style="dim")
+    if d.held:
+        console.print("held at the booth's values (these data cannot pin them): " + ", ".join(d.held),
+                      style="dim")
     style = "green" if d.verdict == "none" else ("yellow" if d.verdict.startswith("ambiguous") else "red")
     console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]")
     for x in d.explanation:
