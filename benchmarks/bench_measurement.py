@@ -23,7 +23,6 @@ Goal (issue 3): diagnosis ≤ 5 s.  Median of ``--repeat`` runs (table 1) or bes
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import tempfile
 import time
@@ -32,17 +31,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from _timing import median_of  # noqa: E402  (benchmarks/ is the script's folder)
+
 BOOTHS = [("xrite-spectralight-qc", "D65"), ("byk-byko-spectra-effect", "FL950"),
           ("iso3664-p1-d50", None)]
 
 
 def _median_ms(fn, repeat: int) -> float:
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(ts)
+    return 1e3 * median_of(fn, repeat)
 
 
 def forward_table(repeat: int) -> None:

@@ -46,23 +46,35 @@ TRUTH_PROVIDERS: dict[str, Callable] = {}
 
 
 def register_truth_provider(name: str, factory: Callable) -> None:
-    """Register a truth provider (e.g. ``'cycles'`` from ``lbscene.bakers``)."""
+    """Register a truth provider: another engine that synthetic measurements can come from
+    (this module registers ``'reference'``, the brute-force Monte Carlo engine)."""
     TRUTH_PROVIDERS[name] = factory
 
 
 def get_truth_provider(name: str) -> Callable:
-    if name not in TRUTH_PROVIDERS and name == "cycles":
-        try:  # the baker registers itself on import when it is available
-            import lbscene.bakers.truth  # noqa: F401
-        except ImportError:
-            pass
-    return TRUTH_PROVIDERS[name]
+    """The factory registered as ``name``; ``KeyError`` naming the registered ones otherwise."""
+    try:
+        return TRUTH_PROVIDERS[name]
+    except KeyError:
+        raise KeyError(f"no truth provider {name!r}; registered: {sorted(TRUTH_PROVIDERS)}") from None
 
 
 # ----------------------------------------------------------------------------- small helpers
 
 def _norm(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _profile_factor(src: dict, u: np.ndarray):
+    """Emission profile of ``src`` toward directions ``u`` (source → receiver).  A mirror
+    image emits the mirrored directions of its lamp, so the angle is taken after reflecting
+    ``u`` in the mirror plane.  1 where the source has no profile."""
+    if src["prof"] is None:
+        return 1.0
+    if src["image_of"] is not None:
+        nn = src["image_of"].n
+        u = u - 2 * (u @ nn)[..., None] * nn
+    return src["prof"](np.arccos(np.clip(u @ src["aim"], -1, 1)))
 
 
 def _profile(profile: dict):
@@ -309,12 +321,7 @@ class ReferenceEngine:
                 u = d_ / r[..., None]
                 cos_r = np.maximum(-(u * n[:, None, :]).sum(-1), 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
-                if src["prof"] is not None:
-                    ue = u
-                    if src["image_of"] is not None:
-                        nn = src["image_of"].n
-                        ue = u - 2 * (u @ nn)[..., None] * nn
-                    val = val * src["prof"](np.arccos(np.clip(ue @ src["aim"], -1, 1)))
+                val = val * _profile_factor(src, u)
                 if m.any():
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
                 if src["image_of"] is not None:
@@ -394,12 +401,7 @@ class ReferenceEngine:
                 cos_r = np.maximum(-u[..., 2], 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
                 val = val * _fresnel_plate(cos_r, self.ir.diffuser.ior) / t0
-                if src["prof"] is not None:
-                    ue = u
-                    if src["image_of"] is not None:
-                        nn = src["image_of"].n
-                        ue = u - 2 * (u @ nn)[..., None] * nn
-                    val = val * src["prof"](np.arccos(np.clip(ue @ src["aim"], -1, 1)))
+                val = val * _profile_factor(src, u)
                 top = pts + [0, 0, 1e-3]
                 if src["image_of"] is not None:
                     val = val * src["image_of"].crosses(src["pos"], top)

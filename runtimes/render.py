@@ -15,7 +15,6 @@ errors for user mistakes.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -152,27 +151,21 @@ def write_png(path: Path, rgba8: np.ndarray, text: dict[str, str] | None = None)
 
 def write_xyz(path: Path, xyz: np.ndarray) -> None:
     """Write float XYZ (H, W, 3) as ``.npy`` or ``.exr`` (channels X, Y, Z), atomically."""
-    import tempfile
+    from lbscene.engine.atomic import atomic_path
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     suffix = path.suffix.lower()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
-    os.close(fd)
-    try:
+    if suffix not in (".npy", ".exr"):
+        raise ValueError(f"unsupported XYZ file type {suffix!r} (use .npy or .exr)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, suffix=suffix) as tmp:
         if suffix == ".npy":
             np.save(tmp, np.asarray(xyz, np.float32))
-        elif suffix == ".exr":
+        else:
             from lbscene.bakers.products import write_exr
 
             write_exr(Path(tmp), np.asarray(xyz, np.float32), ["X", "Y", "Z"],
                       {"lbscene:units": "XYZ, Y in cd/m2 (absolute)"})
-        else:
-            raise ValueError(f"unsupported XYZ file type {suffix!r} (use .npy or .exr)")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def contact_sheet(frames: list[Frame], columns: int = 3, label: bool = True) -> np.ndarray:

@@ -9,10 +9,7 @@ from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format
 
 
 class Mapping(str, Enum):
@@ -49,7 +46,11 @@ def _fmt(x: float | None) -> str:
 
 
 def _text_report(results, rows) -> str:
-    from lbscene.engine.colour.accuracy import COLORCHECKER_SET, TARGET_MAX_DE00, TARGET_MEAN_DE00
+    from lbscene.engine.colour.accuracy import (
+        COLORCHECKER_SET,
+        TARGET_MAX_DE00,
+        TARGET_MEAN_DE00,
+    )
 
     lines = [f"Band weighting vs 1 nm reference (360-830 nm, CIE 1931 2°), 24 patches of "
              f"{COLORCHECKER_SET}: ΔE00 mean/max",
@@ -109,9 +110,13 @@ def register(app: typer.Typer) -> None:
         from rich.console import Console
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-        from lbscene.engine.colour.accuracy import (accuracy_rows, booth_lighting_spds,
-                                                    cie_lighting_spds, evaluate_lighting,
-                                                    plot_per_patch)
+        from lbscene.engine.colour.accuracy import (
+            accuracy_rows,
+            booth_lighting_spds,
+            cie_lighting_spds,
+            evaluate_lighting,
+            plot_per_patch,
+        )
         from lbscene.engine.colour.display_model import load_display
         from lbscene.engine.diagnostics import LbsceneUserError
 

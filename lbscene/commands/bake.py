@@ -24,10 +24,7 @@ from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format, allow_path_option
 
 
 class QualityName(str, Enum):
@@ -113,8 +110,7 @@ def register(app: typer.Typer) -> None:
                                            help="Folder of the bakes (default: <build dir>/bake)."),
         force: bool = typer.Option(False, "--force", help="Bake again even when cached."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
         cross_check: bool = typer.Option(
             False, "--cross-check",
             help="Compare Cycles with the analytic model at the 55 grid points (no products)."),

@@ -4,16 +4,12 @@ from __future__ import annotations
 
 import json
 import time
-from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format, allow_path_option
 
 
 def register(app: typer.Typer) -> None:
@@ -25,8 +21,7 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = typer.Option(None, "--out", "-o",
                                            help="Build folder (default: build/<booth folder name>)."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Compile a booth: scene IR, USD stage, bake jobs and render graphs, written atomically."""
         from rich.console import Console

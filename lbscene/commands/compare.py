@@ -4,16 +4,17 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import (
+    Format,
+    allow_path_option,
+    booth_override_option,
+    measurements_argument,
+)
 
 
 def diagnosis_progress(console, enabled: bool):
@@ -109,9 +110,8 @@ def print_text(res, console) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("compare")
     def compare(
-        measurements: Path = typer.Argument(..., help="Measurement-set YAML (kind: measurement_set)."),
-        booth: Optional[Path] = typer.Option(None, "--booth", help="Booth folder/file (overrides the "
-                                             "measurement set's booth:)."),
+        measurements: Path = measurements_argument(),
+        booth: Optional[Path] = booth_override_option(),
         fit: bool = typer.Option(True, "--fit/--no-fit", help="Fit the free parameters (default) or "
                                  "compare the booth as declared."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
@@ -122,8 +122,7 @@ def register(app: typer.Typer) -> None:
                                       help="Refit with each missing effect and give a verdict."),
         history: bool = typer.Option(True, "--history/--no-history",
                                      help="Append this run to the history next to the measurements."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Compare a booth model with measurements: errors, fit, missing effect, plan, history."""
         from rich.console import Console

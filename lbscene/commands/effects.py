@@ -3,14 +3,10 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format
 
 
 def register(app: typer.Typer) -> None:

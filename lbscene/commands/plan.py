@@ -3,28 +3,28 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import (
+    Format,
+    allow_path_option,
+    booth_override_option,
+    measurements_argument,
+)
 
 
 def register(app: typer.Typer) -> None:
     @app.command("plan")
     def plan(
-        measurements: Path = typer.Argument(..., help="Measurement-set YAML (kind: measurement_set)."),
-        booth: Optional[Path] = typer.Option(None, "--booth", help="Booth folder/file override."),
+        measurements: Path = measurements_argument(),
+        booth: Optional[Path] = booth_override_option(),
         points: int = typer.Option(8, "--points", min=1, max=50, help="At most this many readings."),
         out: Optional[Path] = typer.Option(None, "--out", help="Write a CSV template of the readings."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Propose extra readings (positions, orientations) where tied candidates differ most."""
         from rich.console import Console

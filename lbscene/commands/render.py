@@ -12,10 +12,7 @@ from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format, allow_path_option
 
 
 class Diffuse(str, Enum):
@@ -65,17 +62,28 @@ def register(app: typer.Typer) -> None:
         no_input: bool = typer.Option(False, "--no-input", help="Never ask questions (CI)."),
         egl_device: Optional[int] = typer.Option(None, "--egl-device", help="EGL device index (GPU choice)."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Render a sample in a virtual booth (spectral, 16 bands) to a display-encoded PNG."""
         from rich.console import Console
-        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
-                                   TimeElapsedColumn)
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            SpinnerColumn,
+            TextColumn,
+            TimeElapsedColumn,
+        )
 
         from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.load import display_path
-        from lbscene.runtimes.render import contact_sheet, parse_size, prepare_from_config, write_png, write_xyz
+        from lbscene.runtimes.render import (
+            contact_sheet,
+            parse_size,
+            prepare_from_config,
+            write_png,
+            write_xyz,
+        )
 
         console = Console(stderr=True)
         wh = None

@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
-
-class Format(str, Enum):
-    text = "text"
-    json = "json"
+from lbscene.commands.options import Format, allow_path_option
 
 
 def register(app: typer.Typer) -> None:
@@ -22,8 +18,7 @@ def register(app: typer.Typer) -> None:
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
         strict: bool = typer.Option(False, "--strict", help="Exit 1 when there are warnings."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Also show info notes."),
-        allow_path: Optional[List[Path]] = typer.Option(
-            None, "--allow-path", help="Extra folder file references may point into."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Check booth, sample, display, measurement and render files: schema and semantic rules.
 

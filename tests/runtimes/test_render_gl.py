@@ -152,29 +152,18 @@ def test_sample_reflectance_is_interpolated_between_measured_geometries(gl_ctx, 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("lighting", ["TL84", "D65"])
-def test_centre_pixel_in_the_spectralight_qc(gl_ctx, tmp_path, lighting):
+def test_centre_pixel_in_the_spectralight_qc(gl_ctx, lighting):
     """A real booth with every effect (filters, reflectors, diffuser, inter-reflection) and a
-    spiky fluorescent light; the sample stand turns 45° about the x axis (45as45).
-
-    The booth file turns its A3 platform about its centre line at floor height, which puts
-    the front half of the sample under the floor (hidden; the inter-reflected light is
-    interpolated from the corners, two of them below the floor): this test raises the
-    platform and the sample by 150 mm in a copy of the booth."""
-    import shutil
-
+    spiky fluorescent light; the wedge stand turns the sample 45° about its front edge (the
+    booth's platform pivot), which lifts the sample centre 105 mm and moves it 43.5 mm forward:
+    the expected point and normal are computed here from that pivot, independently of the
+    runtime's placement code."""
     from lbscene.engine.compile import compile_booth
     from lbscene.runtimes.graph import SAMPLE_LIFT_MM
     from lbscene.runtimes.scene import SampleSpec
     from scipy.spatial.transform import Rotation
 
-    booth = tmp_path / "splqc"
-    shutil.copytree(REPO / "booths" / "xrite-spectralight-qc", booth)
-    text = (booth / "booth.yaml").read_text()
-    for key in ("  centre_mm: [0, 0, 0]", "sample_position_mm: [0, 0, 0]"):
-        assert text.count(key) == 1, key
-        text = text.replace(key, key.replace("[0, 0, 0]", "[0, 0, 150]"))
-    (booth / "booth.yaml").write_text(text)
-    ir = compile_booth(booth)
+    ir = compile_booth(REPO / "booths" / "xrite-spectralight-qc")
     refl = _checker_1nm("moderate red")
     r = _renderer(ir, lighting, SampleSpec.flat(refl), gl_ctx)
     try:
@@ -184,9 +173,11 @@ def test_centre_pixel_in_the_spectralight_qc(gl_ctx, tmp_path, lighting):
     p = ir.platform
     rot = Rotation.from_rotvec(np.radians(45.0) * np.asarray(p.rotation_axis, float) /
                                np.linalg.norm(p.rotation_axis))
-    origin = np.asarray(p.centre_mm, float)
+    origin = np.asarray(p.pivot_mm, float)
+    assert origin.tolist() == [0.0, -148.5, 0.0]          # the stand's front edge, on the floor
     rest = np.asarray(ir.sample_position_mm, float) + [0.0, 0.0, SAMPLE_LIFT_MM]
     centre = rot.apply(rest - origin) + origin
+    assert centre[2] > 100.0                              # the sample is lifted, not sunk
     normal = rot.apply([0.0, 0.0, 1.0])
     want, white = _expected_xyz(ir, lighting, refl, centre, normal)
     assert _delta_e00(got, want, white) < 0.3
