@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .disk_cache import cached_array
 from .forward_geometry import (Patches, coplanar_convex_faces, hidden_from_apex, mesh_patches,
                                mesh_triangles, polygon_form_factor, pyramids_clear_of, quad_r2_points,
                                quad_subpoints, segments_blocked, segments_blocked_by_polygon,
@@ -149,7 +150,10 @@ class RadiosityTransport:
         if key not in ctx.cache:
             patches = interior_patches(ir, p.patch_size_mm, p.meshes)
             blockers = mesh_triangles(ir) if p.meshes else np.zeros((0, 3, 3))
-            ctx.cache[key] = (patches, patch_form_factors(patches, blockers=blockers), blockers)
+            # the booth's heaviest geometry (BYK: 2678 patches, 10 s): kept on disk across runs
+            F = cached_array("form_factors", (patches.polys, patches.normals, blockers), (2, 3.0, NUDGE_MM),
+                             lambda: patch_form_factors(patches, blockers=blockers))
+            ctx.cache[key] = (patches, F, blockers)
         self.patches, self.F, self.blockers = ctx.cache[key]
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
@@ -294,7 +298,11 @@ class RadiosityTransport:
                 V[r, c] = ((~np.c_[hid[part], more]) * w_fine[c]).sum(axis=1)
             return V
 
-        return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), compute,
+        def on_disk():
+            return cached_array("gather_visibility", (P_rx, seen, polys, nrm, tris),
+                                (GATHER_SUB, GATHER_FINE, NUDGE_MM), compute)
+
+        return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), on_disk,
                              limit=32)
 
     def _first_order(self):

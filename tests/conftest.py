@@ -12,6 +12,21 @@ DATA = Path(__file__).resolve().parent / "data"
 BOOTHS = REPO / "booths"
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _private_geometry_cache(tmp_path_factory):
+    """The forward model's disk cache (engine.disk_cache) in a folder of this test session,
+    never the user's ~/.cache."""
+    import os
+
+    old = os.environ.get("LBSCENE_CACHE_DIR")
+    os.environ["LBSCENE_CACHE_DIR"] = str(tmp_path_factory.mktemp("lbscene-cache"))
+    yield
+    if old is None:
+        os.environ.pop("LBSCENE_CACHE_DIR", None)
+    else:
+        os.environ["LBSCENE_CACHE_DIR"] = old
+
+
 @pytest.fixture
 def minimal_booth(tmp_path) -> Path:
     """A writable copy of tests/data/minimal-booth."""
