@@ -23,10 +23,10 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   only through the mirror's rectangle, the image method) — while Cycles does
   the geometry: visibility, occlusion, inter-reflection.
 * **products**: an equirect environment map 1 mm above the sample position
-  (one per geometry when the luminaire turns with the platform) holding all
-  light *but* that seen straight from the point lamps (which no camera ray can
-  hit), plus ``sample_direct``: that direct irradiance at the same point for
-  the map's up normal, each geometry's sample normal and 62 directions over
+  (and one per geometry where the platform turns: above the turned sample,
+  in its frame) holding all light *but* that seen straight from the point
+  lamps (which no camera ray can hit), plus ``sample_direct``: that direct
+  irradiance at the same point for the map's up normal and 62 directions over
   the sphere; the floor (and platform) irradiance maps; the irradiance at
   measurement points (default: the seed's 11 × 5 A3 grid around the sample).
 
@@ -300,8 +300,8 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     if environment:
         width = env_width or ENV_WIDTH[quality]
 
-        def env_pair(suffix, up, fwd, geometry, transforms, normals):
-            pos = tuple(float(x) for x in sample + 1.0 * up)
+        def env_pair(suffix, up, fwd, geometry, transforms, normals, centre=sample):
+            pos = tuple(float(x) for x in centre + 1.0 * up)
             dirs = [("up", up)] + normals + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
             direct = IrradiancePointsProduct(
                 id=_jid(f"sample_direct{suffix}"), light_paths="direct", group_transforms=transforms,
@@ -317,17 +317,24 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
                 tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
                                     centre_mm=pf.pivot_mm)
                 M = tr.matrix()[:3, :3]
+                pivot = np.asarray(pf.pivot_mm, float)
                 env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
-                         geo.name, {LUMINAIRE_GROUP: tr}, [])
+                         geo.name, {LUMINAIRE_GROUP: tr}, [], centre=M @ (sample - pivot) + pivot)
         else:
-            normals = []
-            if pf is not None:   # a tilting platform without the luminaire: the sample normals
+            env_pair("", np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), None, {}, [])
+            if pf is not None:
+                # a platform that tilts under fixed lamps (the SpectraLight's 45° stand) carries the
+                # sample to another place: 105 mm up there, ~1.4× the rest position's direct light,
+                # so each tilted geometry gets its own map where the sample is
                 for geo in ir.geometries:
-                    if geo.platform_rotation_deg:
-                        tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg),
-                                            centre_mm=pf.pivot_mm)
-                        normals.append((f"geo:{geo.name}", tr.matrix()[:3, :3] @ np.array([0.0, 0.0, 1.0])))
-            env_pair("", np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), None, {}, normals)
+                    if not geo.platform_rotation_deg:
+                        continue
+                    tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg),
+                                        centre_mm=pf.pivot_mm)
+                    M = tr.matrix()[:3, :3]
+                    at = M @ (sample - np.asarray(pf.pivot_mm, float)) + np.asarray(pf.pivot_mm, float)
+                    env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
+                             geo.name, {}, [], centre=at)
     if maps:
         cell = MAP_CELL_MM[quality]
         it = ir.interior

@@ -7,7 +7,10 @@ A bake folder holds ``manifest.json`` (written last by
 product (channels named by band, ``390-410nm`` …).  Used here:
 
 * ``environment_map`` (per geometry): spectral radiance arriving at the sample
-  → cosine-weighted irradiance on the sample for the view's sample normal;
+  → cosine-weighted irradiance on the sample for the view's sample normal,
+  plus the light straight from the point lamps, which no camera ray of the
+  map can see: the map's ``direct_product`` (irradiance points at the map's
+  position for its up normal, the sample's, and 62 more normals);
 * ``irradiance_map`` on the floor: band irradiance of floor vertices.
 
 Units as the manifest states (W·sr⁻¹·m⁻²·nm⁻¹ and W·m⁻²·nm⁻¹, band means).
@@ -92,6 +95,7 @@ class BakeProducts:
     folder: Path
     manifest: dict
     env_maps: dict = field(default_factory=dict)       # geometry (or None) → (data, entry)
+    direct: dict = field(default_factory=dict)         # irradiance-points id → (normals (N, 3), bands (N, B))
     floor_irradiance: FloorMap | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -112,9 +116,28 @@ class BakeProducts:
             return False
 
     def sample_irradiance_bands(self, view: str, normal_world) -> np.ndarray:
+        """Irradiance (B,) on the sample for ``normal_world``: the map's light plus the direct
+        light of the point lamps (the map cannot hold it)."""
         data, e = self._env(view)
-        return environment_irradiance(data, e.get("projection", "equirect"), e.get("forward", (0, 1, 0)),
-                                      e.get("up", (0, 0, 1)), normal_world)
+        env = environment_irradiance(data, e.get("projection", "equirect"), e.get("forward", (0, 1, 0)),
+                                     e.get("up", (0, 0, 1)), normal_world)
+        return env + self._direct(e, normal_world)
+
+    def _direct(self, e: dict, normal) -> np.ndarray:
+        pid = e.get("direct_product")
+        if pid is None or pid not in self.direct:
+            return 0.0
+        normals, bands = self.direct[pid]
+        n = np.asarray(normal, float) / np.linalg.norm(normal)
+        cos = normals @ n
+        k = int(np.argmax(cos))
+        if cos[k] > 1.0 - 1e-9:          # the map's up normal (the view's sample normal): as baked
+            return bands[k]
+        # another normal: the nearest baked ones, weighted by closeness (point lamps' direct light
+        # varies smoothly with the normal away from their horizons)
+        near = np.argsort(-cos)[:4]
+        w = 1.0 / np.maximum(np.arccos(np.clip(cos[near], -1.0, 1.0)), 1e-9)
+        return (w[:, None] * bands[near]).sum(axis=0) / w.sum()
 
     def describe(self, view: str) -> dict:
         _, e = self._env(view)
@@ -135,6 +158,13 @@ def load_bake(folder: Path, *, lamps_turn_with_platform: bool = False, views: in
         if e.get("type") == "environment_map":
             data, _ = read_product(exr)
             out.env_maps[e.get("geometry")] = (data, e)
+        elif e.get("type") == "irradiance_points" and any(
+                x.get("direct_product") == pid for x in m.get("products", {}).values()):
+            data, _ = read_product(exr)
+            meta = json.loads((folder / f"{pid}.points.json").read_text())
+            nrm = np.array([[p["nx"], p["ny"], p["nz"]] for p in meta["points"]], float)
+            nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+            out.direct[pid] = (nrm, data.reshape(len(nrm), -1).astype(float))
         elif e.get("type") == "irradiance_map":
             u, v = _vec(e["u_axis"]), _vec(e["v_axis"])
             floorish = "floor" in pid.lower() or (abs(float(e["origin_mm"][2])) < 1e-6 and np.cross(u, v)[2] > 0.99)
