@@ -18,8 +18,8 @@ The inverse :meth:`DisplayModel.xyz_to_drive` subtracts the floor, solves
 ``rgb = M⁻¹ (XYZ − XYZ_floor)``, maps colours outside the gamut, and inverts
 the tone responses.
 
-Out-of-gamut mapping (documented, mirrored by :data:`GLSL_DISPLAY_SOURCE`)
--------------------------------------------------------------------------
+Out-of-gamut mapping (documented, mirrored by ``runtimes/shaders/lib_display.glsl``)
+-----------------------------------------------------------------------------------
 A target is out of gamut when a linear channel of ``rgb`` leaves [0, 1]
 (tolerance 1e-9).  Two mappings:
 
@@ -34,8 +34,7 @@ A target is out of gamut when a linear channel of ``rgb`` leaves [0, 1]
     CIE 1931 xy diagram (constant dominant wavelength) — only chroma is lost.
     Targets darker than the floor (ambient reflection + black) become black;
     brighter than white become white.
-``"clip"`` — each channel clipped to [0, 1] (what ``runtimes/shaders/lib_display.glsl``
-    does today).
+``"clip"`` — each channel clipped to [0, 1] (the shader's ``GAMUT_MAPPING 0``).
 
 The report (:class:`GamutReport`) counts the out-of-gamut items and says by
 how much: the largest linear-channel excess and the ΔE00 between the target
@@ -73,7 +72,6 @@ __all__ = [
     "load_display",
     "GAMUT_MAPPINGS",
     "IN_GAMUT_TOLERANCE",
-    "GLSL_DISPLAY_SOURCE",
     "TONE_KIND_SRGB",
     "TONE_KIND_GOG",
     "TONE_KIND_LUT",
@@ -443,57 +441,3 @@ def load_display(path, *, mapping: Literal["chroma", "clip"] = "chroma") -> Disp
 
     doc = load_document(Path(path), Display)
     return DisplayModel(doc.model, doc.resolve, mapping=mapping, display_name=doc.file)
-
-
-#: GLSL ES 3.00 functions mirroring :meth:`DisplayModel.xyz_to_drive` (uniform names as in
-#: ``runtimes/shaders/lib_display.glsl`` plus ``u_inv_y_span`` and ``u_gamut_mapping``).
-GLSL_DISPLAY_SOURCE = r"""
-uniform mat3 u_xyz_to_rgb;          // xyz_to_rgb_column_major
-uniform vec3 u_xyz_offset;          // black level + reflected ambient, cd/m²
-uniform int u_tone_kind;            // 0 sRGB, 1 GOG, 2 LUT
-uniform vec4 u_tone_params[3];      // (gain, offset, gamma, 0)
-uniform sampler2D u_tone_lut;       // (size × 1): drive for linear value i/(size − 1)
-uniform int u_tone_lut_size;
-uniform float u_inv_y_span;         // 1 / (Y_white − Y_black)
-uniform int u_gamut_mapping;        // 0 clip, 1 chroma
-
-float lb_srgb_encode(float x) {
-    x = clamp(x, 0.0, 1.0);
-    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
-}
-float lb_gog_inverse(float l, vec4 p) {
-    return clamp((pow(clamp(l, 0.0, 1.0), 1.0 / p.z) - p.y) / p.x, 0.0, 1.0);
-}
-float lb_lut_inverse(float l, int channel) {
-    float x = clamp(l, 0.0, 1.0) * float(u_tone_lut_size - 1);
-    int i0 = min(int(floor(x)), u_tone_lut_size - 2);
-    float t = x - float(i0);
-    float a = texelFetch(u_tone_lut, ivec2(i0, 0), 0)[channel];
-    float b = texelFetch(u_tone_lut, ivec2(i0 + 1, 0), 0)[channel];
-    return mix(a, b, t);
-}
-// returns drive values; excess (out of gamut by how much, 0 inside) in the out parameter
-vec3 lb_xyz_to_drive(vec3 xyz, out float excess) {
-    vec3 lin = u_xyz_to_rgb * (xyz - u_xyz_offset);
-    excess = max(max(max(-lin.r, -lin.g), -lin.b), max(max(lin.r, lin.g), lin.b) - 1.0);
-    excess = max(excess, 0.0);
-    if (excess > 1e-6 && u_gamut_mapping == 1) {
-        float g = clamp((xyz.y - u_xyz_offset.y) * u_inv_y_span, 0.0, 1.0);
-        vec3 diff = lin - vec3(g);
-        float s = 1.0;
-        for (int c = 0; c < 3; ++c) {
-            if (lin[c] > 1.0) s = min(s, (1.0 - g) / diff[c]);
-            if (lin[c] < 0.0) s = min(s, g / -diff[c]);
-        }
-        lin = vec3(g) + clamp(s, 0.0, 1.0) * diff;
-    }
-    lin = clamp(lin, 0.0, 1.0);
-    if (u_tone_kind == 0) {
-        return vec3(lb_srgb_encode(lin.r), lb_srgb_encode(lin.g), lb_srgb_encode(lin.b));
-    } else if (u_tone_kind == 1) {
-        return vec3(lb_gog_inverse(lin.r, u_tone_params[0]), lb_gog_inverse(lin.g, u_tone_params[1]),
-                    lb_gog_inverse(lin.b, u_tone_params[2]));
-    }
-    return vec3(lb_lut_inverse(lin.r, 0), lb_lut_inverse(lin.g, 1), lb_lut_inverse(lin.b, 2));
-}
-"""

@@ -1,5 +1,6 @@
-"""The GLSL ES 3.00 display functions and the exported uniforms reproduce
-``DisplayModel.xyz_to_drive`` (Mesa llvmpipe through moderngl's EGL backend)."""
+"""The runtime's GLSL ES 3.00 display library (``runtimes/shaders/lib_display.glsl``, composed as
+the runtime composes it) and the exported uniforms reproduce ``DisplayModel.xyz_to_drive``
+(Mesa llvmpipe through moderngl's EGL backend)."""
 
 from pathlib import Path
 
@@ -16,19 +17,12 @@ const vec2 P[3] = vec2[3](vec2(-1.0, -1.0), vec2(3.0, -1.0), vec2(-1.0, 3.0));
 void main() { gl_Position = vec4(P[gl_VertexID], 0.0, 1.0); }
 """
 
-FRAG_HEAD = """#version 300 es
+FRAG = """#version 300 es
 precision highp float;
-precision highp int;
-precision highp sampler2D;
 uniform sampler2D u_xyz;
-"""
-
-FRAG_MAIN = """
 layout(location = 0) out vec4 o_drive;
 void main() {
-    float excess;
-    vec3 d = lb_xyz_to_drive(texelFetch(u_xyz, ivec2(gl_FragCoord.xy), 0).xyz, excess);
-    o_drive = vec4(d, excess);
+    o_drive = display_drive(texelFetch(u_xyz, ivec2(gl_FragCoord.xy), 0).xyz);
 }
 """
 
@@ -45,10 +39,11 @@ def ctx():
 
 
 def _run(ctx, model, xyz):
-    from lbscene.engine.colour.display_model import GLSL_DISPLAY_SOURCE
+    from lbscene.runtimes.graph import LIB_DISPLAY, compose_shader
 
     u = model.glsl_uniforms()
-    prog = ctx.program(vertex_shader=VERT, fragment_shader=FRAG_HEAD + GLSL_DISPLAY_SOURCE + FRAG_MAIN)
+    defines = [("TONE_KIND", u["tone_kind"]), ("GAMUT_MAPPING", u["gamut_mapping"])]
+    prog = ctx.program(vertex_shader=VERT, fragment_shader=compose_shader(FRAG, defines, [LIB_DISPLAY]))
     n = len(xyz)
     tex = ctx.texture((n, 1), 4, np.c_[xyz, np.ones(n)].astype("f4").tobytes(), dtype="f4")
     tex.filter = (ctx.NEAREST, ctx.NEAREST)
@@ -59,10 +54,9 @@ def _run(ctx, model, xyz):
     tex.use(0)
     lut_tex.use(1)
     values = {"u_xyz": 0, "u_tone_lut": 1, "u_xyz_to_rgb": tuple(u["xyz_to_rgb_column_major"]),
-              "u_xyz_offset": tuple(u["xyz_offset"]), "u_tone_kind": u["tone_kind"],
+              "u_xyz_offset": tuple(u["xyz_offset"]), "u_exposure": 1.0,
               "u_tone_params": [tuple(p) for p in u["tone_params"]],
-              "u_tone_lut_size": max(u["tone_lut_size"], 2), "u_inv_y_span": u["inv_y_span"],
-              "u_gamut_mapping": u["gamut_mapping"]}
+              "u_tone_lut_size": max(u["tone_lut_size"], 2), "u_inv_y_span": u["inv_y_span"]}
     for k, v in values.items():
         if k in prog:
             prog[k].value = v
