@@ -384,10 +384,9 @@ class RigidTransform(StrictModel):
         """4×4 homogeneous matrix acting on column vectors in millimetres."""
         import numpy as np
 
-        a = np.asarray(self.axis, float)
-        t = math.radians(self.angle_deg)
-        K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-        R = np.eye(3) + math.sin(t) * K + (1 - math.cos(t)) * K @ K
+        from lbscene.engine.forward_geometry import rotation_matrix
+
+        R = rotation_matrix(self.axis, self.angle_deg)
         c = np.asarray(self.centre_mm, float)
         M = np.eye(4)
         M[:3, :3] = R

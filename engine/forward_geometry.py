@@ -51,9 +51,23 @@ __all__ = [
     "coplanar_convex_faces",
     "segments_blocked_by_polygon",
     "visibility_matrix",
+    "rotation_matrix",
 ]
 
 _EPS = 1e-12
+
+
+def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
+    """Right-handed rotation (3×3) by ``angle_deg`` about ``axis`` (normalised here; Rodrigues).
+
+    >>> np.round(rotation_matrix([1, 0, 0], 90) @ [0, 0, 1], 12).tolist()
+    [0.0, -1.0, 0.0]
+    """
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    t = np.radians(angle_deg)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * (k @ k)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 from lbscene.schemas.booth import Booth
 
 from .diagnostics import Diagnostic, LbsceneUserError, Severity
+from .forward_geometry import rotation_matrix
 from .load import LoadedDocument
 from .spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 
@@ -198,11 +199,7 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
         if pf is None or not g.platform_rotation_deg:
             continue
         # the platform's corners turned about its axis for this geometry must stay inside
-        a = np.asarray(pf.rotation_axis, float)
-        a = a / np.linalg.norm(a)
-        t = np.radians(g.platform_rotation_deg)
-        K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-        R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
+        R = rotation_matrix(pf.rotation_axis, g.platform_rotation_deg)
         c = np.asarray(pf.centre_mm, float)
         o = np.asarray(pf.pivot_mm if pf.pivot_mm is not None else pf.centre_mm, float)
         sx, sy = pf.size_mm[0] / 2, pf.size_mm[1] / 2

@@ -73,6 +73,8 @@ from typing import Any
 
 import numpy as np
 
+from lbscene.engine.forward_geometry import rotation_matrix
+
 __all__ = [
     "GRAPH_FORMAT",
     "GRAPH_VERSION",
@@ -116,15 +118,6 @@ def _rv(v) -> list[float]:
 
 
 # --------------------------------------------------------------------------- geometry of views
-
-def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
-    """Right-handed rotation (3×3) by ``angle_deg`` about the unit ``axis`` (Rodrigues)."""
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    t = np.radians(angle_deg)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * (k @ k)
-
 
 def _illumination_centre(ir, lighting: str) -> np.ndarray:
     """Luminous-intensity-weighted centre of the lamps that are on (the geometry's light)."""
