@@ -83,6 +83,23 @@ def _illuminance_noise_rms(parts: list[np.ndarray], w_v: np.ndarray) -> float:
     return float(np.sqrt(np.mean((0.5 * np.abs(ea - eb)[ok] / y[ok]) ** 2)))
 
 
+def _render_runs(scene, p, g, runs) -> list[np.ndarray]:
+    """Product ``p`` in the current band group ``g``, once per ``(samples, seed)`` run, with the
+    product's group transforms applied (and always reset)."""
+    scene.apply_group_transforms(p.group_transforms)
+    try:
+        out = []
+        for ns, seed in runs:
+            if p.type == "environment_map":
+                rgb = scene.render_environment(p, ns, seed)
+            else:
+                rgb = scene.bake_irradiance(p, ns, seed)
+            out.append(rgb[..., : len(g)])
+        return out
+    finally:
+        scene.reset_group_transforms()
+
+
 def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
              save_blend: bool = True) -> dict:
     """Bake every product of ``job`` into ``out_dir`` (created); returns the manifest."""
@@ -122,16 +139,8 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
             if p.id not in halves:
                 halves[p.id] = [np.zeros(_shape(job, p) + (n,)) for _ in runs]
                 counts[p.id] = [ns for ns, _ in runs]
-            scene.apply_group_transforms(p.group_transforms)
-            try:
-                for k, (ns, seed) in enumerate(runs):
-                    if p.type == "environment_map":
-                        rgb = scene.render_environment(p, ns, seed)
-                    else:
-                        rgb = scene.bake_irradiance(p, ns, seed)
-                    halves[p.id][k][..., g] = rgb[..., : len(g)]
-            finally:
-                scene.reset_group_transforms()
+            for k, part in enumerate(_render_runs(scene, p, g, runs)):
+                halves[p.id][k][..., g] = part
             timings[p.id] += time.perf_counter() - t0
             done += 1
 
@@ -160,12 +169,8 @@ def bake_job(job: BakeJob, out_dir: Path, progress: Progress | None = None,
                 step(done, total, f"{p.id}: {need} samples for {100 * target:g} % noise "
                                   f"(now {100 * rel:.2f} %), bands {labels[g[0]]}…{labels[g[-1]]}")
                 scene.set_band_group(g)
-                scene.apply_group_transforms(p.group_transforms)
-                try:
-                    for k in range(2):
-                        new[k][..., g] = scene.bake_irradiance(p, extra[k], seeds[k])[..., : len(g)]
-                finally:
-                    scene.reset_group_transforms()
+                for k, part in enumerate(_render_runs(scene, p, g, list(zip(extra, seeds)))):
+                    new[k][..., g] = part
                 done += 1
             for k in range(2):
                 c = counts[p.id][k]
