@@ -277,13 +277,12 @@ def _pinned_by_data(meas, effects, free, joint, noise, cache) -> tuple[list, lis
     scales = prob.scales_for(A, T)
     r = prob.residuals(x0, scales)
     chi2 = float(r @ r)
-    se, _, _ = prob._errors(x0, scales, chi2)
-    # _errors scales the covariance by χ²/dof (a model still missing an effect fits badly);
-    # what the data can pin is the noise-limited error
-    s = math.sqrt(max(chi2 / max(prob.n_residuals - len(prob.free), 1), 1e-12))
+    # noise-limited: a model still missing an effect fits badly, which must not hide what the
+    # data could pin
+    se, _, _ = prob._errors(x0, scales, chi2, noise_limited=True)
     keep, held = [], []
     for fp in joint:
-        e = se.get(fp.target, float("inf")) / s
+        e = se.get(fp.target, float("inf"))
         (keep if e < PINNED_FRACTION * (fp.bounds[1] - fp.bounds[0]) else held).append(fp)
     return keep, held
 

@@ -534,8 +534,11 @@ class FitProblem:
             tile_bands_pred=tile_pred, tile_bands_meas=self.tile_meas, tile_band_mask=self.tile_mask,
             tile_1nm_pred=tile1, success=success, message=message, nfev=self.nfev, fitted=fitted)
 
-    def _errors(self, x_nl, scales, chi2):
-        """Standard errors and correlations from the Jacobian over all free parameters."""
+    def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):
+        """Standard errors and correlations from the Jacobian over all free parameters.
+
+        The covariance is scaled by χ²/dof (a fit worse than the noise widens it), unless
+        ``noise_limited``: then it is what the data could pin down at the declared noise."""
         n = self.n_residuals
         cols = []
         A, T, *_ = self.components(x_nl)
@@ -555,7 +558,7 @@ class FitProblem:
         self.components(x_nl)  # restore the cache to the optimum
         J = np.stack(cols, axis=1)
         dof = max(n - J.shape[1], 1)
-        s2 = chi2 / dof
+        s2 = 1.0 if noise_limited else chi2 / dof
         try:
             cov = np.linalg.pinv(J.T @ J) * s2
         except np.linalg.LinAlgError:
