@@ -10,9 +10,8 @@ What the runtime needs from colour science, in the form the shaders use.
 * :func:`blue_noise_mask`: dither thresholds in [0, 1).
 * :func:`display_uniforms`: the display model as GLSL uniforms.
 
-Each prefers the colour module of this project (:mod:`lbscene.engine.colour`)
-when it provides the function, and otherwise uses the fallback defined here
-(documented next to each), so that the runtime works on its own.
+The colour science itself is the colour module's (:mod:`lbscene.engine.colour`);
+this module puts it in the runtime's units and shapes.
 
 Examples
 --------
@@ -36,7 +35,6 @@ __all__ = [
     "radiance_xyz_weights",
     "project_reflectance",
     "blue_noise_mask",
-    "void_and_cluster",
     "DisplayUniforms",
     "srgb_display",
     "display_uniforms",
@@ -87,120 +85,39 @@ def band_membership(first_centre_nm: float, width_nm: float, count: int) -> np.n
     return a
 
 
-def _grid_key(grid) -> tuple:
-    return (float(grid.first_centre_nm), float(grid.width_nm), int(grid.count))
-
-
 def radiance_xyz_weights(light_1nm: np.ndarray, grid) -> np.ndarray:
     """(B, 3) weights: XYZ (Y in cd·m⁻²) per unit band-mean radiance (W·sr⁻¹·m⁻²·nm⁻¹).
 
     ``W_b = 683·Σ_{λ∈b} E(λ)·cmf(λ)·1 nm / E_b`` with ``E`` the spectral irradiance
     (any scale) of the light falling on what is seen and ``E_b`` its band mean, so
     that for a band-constant reflectance ρ_b: ``Σ_b ρ_b·E_b/π·W_b`` equals
-    ``683/π·Σ_λ ρ·E·cmf`` exactly.  Bands where the light is dark use an equal-energy
-    light.  The colour module's ``band_weighting.band_xyz_weights(light_1nm, grid, k=683)``
-    (the same definition) replaces this fallback when present.
+    ``683/π·Σ_λ ρ·E·cmf`` exactly: the colour module's
+    ``band_weighting.band_xyz_weights(light_1nm, grid, k=683)``.
     """
-    from lbscene.engine.spectra import cmfs_1nm
+    from lbscene.engine.colour.band_weighting import band_xyz_weights
 
-    e = np.asarray(light_1nm, float)
-    fn = _colour_attr("band_weighting", "band_xyz_weights")
-    if fn is not None:
-        return np.asarray(fn(e, grid, k=K_M), float)
-    eb = grid.integrate(e)
-    m = band_membership(*_grid_key(grid))
-    w_refl = K_M * (m * e[None, :]) @ cmfs_1nm()
-    flat = K_M * band_membership(*_grid_key(grid)) @ cmfs_1nm()
-    dark = eb <= 1e-12 * max(float(eb.max()), 1e-300)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.where(dark[:, None], flat, w_refl / np.where(dark, 1.0, eb)[:, None])
-    return w
+    return np.asarray(band_xyz_weights(np.asarray(light_1nm, float), grid, k=K_M), float)
 
 
 def project_reflectance(reflectance_1nm: np.ndarray, light_1nm: np.ndarray, grid) -> np.ndarray:
-    """Band reflectances of a 1 nm reflectance for a light.
+    """Band reflectances of a 1 nm reflectance for a light (the colour module's
+    ``band_weighting.project_reflectance``: close to the band means, reproducing the light's
+    1 nm tristimulus values)."""
+    from lbscene.engine.colour.band_weighting import project_reflectance as project
 
-    The colour module's ``project_reflectance(reflectance_1nm, light_1nm, grid)`` when
-    present; otherwise the band means plus the smallest correction (least norm) that
-    makes ``Σ_b ρ_b·E_b·W_b`` equal the light's 1 nm tristimulus values
-    ``683·Σ_λ ρ·E·cmf`` (W from :func:`radiance_xyz_weights`).
-    """
-    fn = _colour_attr("band_weighting", "project_reflectance")
-    r = np.asarray(reflectance_1nm, float)
-    e = np.asarray(light_1nm, float)
-    if fn is not None:
-        return np.asarray(fn(r, e, grid), float).ravel()
-    from lbscene.engine.spectra import cmfs_1nm
-
-    m = grid.integrate(r)
-    a = grid.integrate(e)[:, None] * radiance_xyz_weights(e, grid)      # (B, 3)
-    target = K_M * (r * e) @ cmfs_1nm()
-    scale = np.abs(a).max(axis=0)
-    scale[scale == 0] = 1.0
-    an = a / scale                                                     # column scaling
-    resid = (target - a.T @ m) / scale
-    corr, *_ = np.linalg.lstsq(an.T, resid, rcond=None)
-    return m + corr
+    return np.asarray(project(np.asarray(reflectance_1nm, float), np.asarray(light_1nm, float), grid),
+                      float).ravel()
 
 
 # --------------------------------------------------------------------------- dithering
 
-def void_and_cluster(size: int = 64, sigma: float = 1.5, seed: int = 0) -> np.ndarray:
-    """Blue-noise threshold matrix (Ulichney 1993, void-and-cluster), values (rank + ½)/size²."""
-    rng = np.random.default_rng(seed)
-    n = size * size
-    d = np.minimum(np.arange(size), size - np.arange(size)).astype(float)
-    kernel = np.exp(-(d[:, None] ** 2 + d[None, :] ** 2) / (2 * sigma * sigma))
-
-    def energy_of(pattern):
-        return np.real(np.fft.ifft2(np.fft.fft2(pattern) * np.fft.fft2(kernel)))
-
-    def add(en, idx, sign):
-        i, j = divmod(idx, size)
-        en += sign * np.roll(np.roll(kernel, i, axis=0), j, axis=1)
-
-    pattern = np.zeros((size, size), bool)
-    pattern.flat[rng.choice(n, n // 10, replace=False)] = True
-    en = energy_of(pattern.astype(float))
-    for _ in range(4 * n):  # relax: move the tightest cluster into the largest void
-        c = int(np.argmax(np.where(pattern, en, -np.inf)))
-        pattern.flat[c] = False
-        add(en, c, -1.0)
-        v = int(np.argmin(np.where(pattern, np.inf, en)))
-        if v == c:
-            pattern.flat[c] = True
-            add(en, c, 1.0)
-            break
-        pattern.flat[v] = True
-        add(en, v, 1.0)
-    rank = np.zeros(n, int)
-    ones = int(pattern.sum())
-    p = pattern.copy()
-    e = en.copy()
-    for r in range(ones - 1, -1, -1):      # phase 1: remove tightest clusters
-        c = int(np.argmax(np.where(p, e, -np.inf)))
-        p.flat[c] = False
-        add(e, c, -1.0)
-        rank[c] = r
-    p = pattern.copy()
-    e = en.copy()
-    for r in range(ones, n):               # phases 2 and 3: fill the largest voids
-        v = int(np.argmin(np.where(p, np.inf, e)))
-        p.flat[v] = True
-        add(e, v, 1.0)
-        rank[v] = r
-    return ((rank.reshape(size, size) + 0.5) / n).astype(np.float32)
-
-
 @lru_cache(maxsize=4)
 def blue_noise_mask(size: int = 64) -> np.ndarray:
-    """(size, size) float32 thresholds in [0, 1): the colour module's ``dither.blue_noise(size)``
-    when present, else :func:`void_and_cluster`."""
-    fn = _colour_attr("dither", "blue_noise")
-    if fn is not None:
-        m = np.asarray(fn(size), np.float32)
-        return m[..., 0] if m.ndim == 3 else m
-    return void_and_cluster(size)
+    """(size, size) float32 thresholds in [0, 1): the colour module's ``dither.blue_noise(size)``."""
+    from lbscene.engine.colour.dither import blue_noise
+
+    m = np.asarray(blue_noise(size), np.float32)
+    return m[..., 0] if m.ndim == 3 else m
 
 
 # --------------------------------------------------------------------------- display
@@ -254,14 +171,14 @@ def srgb_display(white_Y_cd_m2: float = 80.0) -> DisplayUniforms:
 def display_uniforms(path=None) -> DisplayUniforms:
     """The display of a render configuration as shader uniforms.
 
-    With the colour module's display model (``display_model.load_display(path)``
-    returning a model with ``glsl_uniforms()``), its export is used; otherwise (or
-    for ``path=None``) the built-in sRGB reference display.
+    The colour module's display model (``display_model.load_display(path)``) exported by
+    its ``glsl_uniforms()``; for ``path=None`` the built-in sRGB reference display.
     """
-    load = _colour_attr("display_model", "load_display")
-    if path is None or load is None:
+    if path is None:
         return srgb_display()
-    model = load(path)
+    from lbscene.engine.colour.display_model import load_display
+
+    model = load_display(path)
     u = model.glsl_uniforms()
     return DisplayUniforms(
         gamut_mapping=int(u.get("gamut_mapping", 1)),

@@ -349,23 +349,15 @@ def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
     return np.clip(fm.spectral_irradiance_1nm([point], [normal])[0], 0.0, None)
 
 
-def _noise_offsets(size: int) -> tuple[tuple[int, int], ...]:
-    """(x, y) mask offsets of channels R, G, B (the colour module's channel_offsets_xy)."""
-    try:
-        from lbscene.engine.colour.dither import channel_offsets_xy
-
-        return tuple((int(x), int(y)) for x, y in channel_offsets_xy(size))
-    except ImportError:
-        return ((0, 0), (size // 2, size // 3), (size // 3, size // 2))
-
-
 def noise_texture(mask: np.ndarray) -> np.ndarray:
     """(s, s, 4) float32 for the ``blue_noise`` texture: channel c at texel (x, y) holds the
     mask at ((x + dx_c) mod s, (y + dy_c) mod s) for the channel offsets, so the shader
     fetches one texel for three channels."""
+    from lbscene.engine.colour.dither import channel_offsets_xy
+
     mask = np.asarray(mask, np.float32)
     out = np.zeros(mask.shape + (4,), np.float32)
-    for c, (dx, dy) in enumerate(_noise_offsets(mask.shape[0])):
+    for c, (dx, dy) in enumerate(channel_offsets_xy(mask.shape[0])):
         out[..., c] = np.roll(mask, (-dy, -dx), axis=(0, 1))
     return out
 
