@@ -300,9 +300,9 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     if environment:
         width = env_width or ENV_WIDTH[quality]
 
-        def env_pair(suffix, up, fwd, geometry, transforms, normals, centre=sample):
+        def env_pair(suffix, up, fwd, geometry, transforms, centre=sample):
             pos = tuple(float(x) for x in centre + 1.0 * up)
-            dirs = [("up", up)] + normals + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
+            dirs = [("up", up)] + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
             direct = IrradiancePointsProduct(
                 id=_jid(f"sample_direct{suffix}"), light_paths="direct", group_transforms=transforms,
                 points=tuple(MeasurementPoint(position_mm=pos, normal=tuple(map(float, d)), name=nm)
@@ -312,29 +312,22 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
                                         group_transforms=transforms, direct_product=direct.id)
             products.extend([env, direct])
 
-        if turning:
-            for geo in ir.geometries:
-                tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
-                                    centre_mm=pf.pivot_mm)
-                M = tr.matrix()[:3, :3]
-                pivot = np.asarray(pf.pivot_mm, float)
-                env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
-                         geo.name, {LUMINAIRE_GROUP: tr}, [], centre=M @ (sample - pivot) + pivot)
-        else:
-            env_pair("", np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), None, {}, [])
-            if pf is not None:
-                # a platform that tilts under fixed lamps (the SpectraLight's 45° stand) carries the
-                # sample to another place: 105 mm up there, ~1.4× the rest position's direct light,
-                # so each tilted geometry gets its own map where the sample is
-                for geo in ir.geometries:
-                    if not geo.platform_rotation_deg:
-                        continue
-                    tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg),
-                                        centre_mm=pf.pivot_mm)
-                    M = tr.matrix()[:3, :3]
-                    at = M @ (sample - np.asarray(pf.pivot_mm, float)) + np.asarray(pf.pivot_mm, float)
-                    env_pair(f".{geo.name}", M @ np.array([0.0, 0.0, 1.0]), M @ np.array([0.0, 1.0, 0.0]),
-                             geo.name, {}, [], centre=at)
+        z, y = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
+        if not turning:
+            env_pair("", z, y, None, {})
+        # one map per geometry where the sample is, in its frame: every geometry of a luminaire
+        # that turns with the platform (the luminaire turned with it); the tilted ones of a
+        # platform under fixed lamps (the SpectraLight's 45° stand carries the sample 105 mm up,
+        # ~1.4× the rest position's direct light)
+        for geo in (ir.geometries if pf is not None else ()):
+            if not (turning or geo.platform_rotation_deg):
+                continue
+            tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
+                                centre_mm=pf.pivot_mm)
+            M = tr.matrix()[:3, :3]
+            pivot = np.asarray(pf.pivot_mm, float)
+            env_pair(f".{geo.name}", M @ z, M @ y, geo.name, {LUMINAIRE_GROUP: tr} if turning else {},
+                     centre=M @ (sample - pivot) + pivot)
     if maps:
         cell = MAP_CELL_MM[quality]
         it = ir.interior
