@@ -25,20 +25,13 @@ b'x'
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from .outputs import _tmp_name, _umask, clean_leftovers, replace_dir, temporary_dir_for
+
 __all__ = ["atomic_path", "write_atomic", "temporary_dir_for", "atomic_replace_dir"]
-
-
-def _umask() -> int:
-    # os.umask can only be read by setting it; done once per call, restored at once
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 @contextmanager
@@ -47,13 +40,18 @@ def atomic_path(path: Path | str, suffix: str = ".tmp") -> Iterator[Path]:
 
     ``suffix`` lets writers that infer the format from the name (``np.save``,
     matplotlib) see the right extension.  On any exception the temporary file
-    is removed and ``path`` is left as it was.
+    is removed and ``path`` is left as it was.  The temporary's name carries the
+    process id, so a later run can remove what a killed one left
+    (:func:`lbscene.engine.outputs.clean_leftovers`).
+
+    This is for lbscene's own files (caches, bake products); outputs a user names go
+    through :mod:`lbscene.engine.outputs`, which also checks and records them.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
+    clean_leftovers(path.parent, path.name)
+    tmp = _tmp_name(path, suffix=suffix)
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())
@@ -70,22 +68,6 @@ def write_atomic(path: Path | str, data: bytes | str) -> None:
         tmp.write_bytes(raw)
 
 
-def temporary_dir_for(out_dir: Path | str) -> Path:
-    """A fresh, empty sibling folder of ``out_dir`` to assemble it in (see :func:`atomic_replace_dir`)."""
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
-    os.chmod(tmp, 0o777 & ~_umask())
-    return tmp
-
-
 def atomic_replace_dir(tmp_dir: Path | str, out_dir: Path | str) -> None:
     """Move a finished folder into place, replacing ``out_dir`` (the old one is kept until then)."""
-    out_dir = Path(out_dir)
-    old = None
-    if out_dir.exists():
-        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-        os.replace(out_dir, old)
-    os.replace(tmp_dir, out_dir)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    replace_dir(tmp_dir, out_dir)

@@ -12,7 +12,11 @@ Layout of a build folder::
     lighting/<NAME>/...         products of registered writers (bake jobs, render graphs)
 
 Everything is written into a temporary sibling folder that replaces the old
-build only when complete: an interrupted build leaves the previous one intact.
+build only when complete: an interrupted build leaves the previous one intact,
+and the next build removes what it left.  ``--out`` follows the output policy of
+:mod:`lbscene.engine.outputs`: an existing folder is replaced only if it is an
+lbscene build (its ``manifest.json``) holding nothing else; never the booth's own
+folder, a folder of the user's files, or a file.
 Same inputs → byte-identical files (no timestamps; canonical JSON).
 """
 
@@ -26,9 +30,11 @@ from importlib import import_module
 from pathlib import Path
 from typing import Callable
 
-from .atomic import atomic_replace_dir, temporary_dir_for, write_atomic
+from .atomic import atomic_replace_dir, write_atomic
 from .diagnostics import LbsceneUserError
 from .ir import SceneIR, canonical_json
+from .outputs import (_is_input, check_output_dir, register_input, replace_dir, restore_interrupted,
+                      temporary_dir_for)
 
 __all__ = ["BuildResult", "build_booth", "PRODUCT_WRITERS", "atomic_replace_dir", "write_atomic"]
 
@@ -66,16 +72,23 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
     from .usd_stage import SCHEMA_DIR, write_stage
 
     step = progress or (lambda msg: None)
+    out_dir = Path(out_dir)
+    register_input(booth_path)
+    restore_interrupted(out_dir)
+    check_output_dir(out_dir, option="--out")
     step("compile")
     ir: SceneIR = compile_booth(booth_path, allowed_dirs=allowed_dirs)
+    held = _is_input(out_dir)        # every file the booth references is known now
+    if held is not None:
+        raise LbsceneUserError.single("LB612", "--out: output folder would replace or hold one of this "
+                                      "run's inputs", str(out_dir), value=held,
+                                      expected="a folder that holds no input")
     if lighting is not None and lighting not in ir.lighting:
         raise LbsceneUserError.single(
             "LB500", f"booth has no lighting configuration {lighting!r}", str(booth_path),
             value=repr(lighting), expected=f"one of {', '.join(ir.lighting)}")
     lightings = [lighting] if lighting else list(ir.lighting)
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_dir_for(out_dir)
+    tmp = temporary_dir_for(out_dir, option="--out")
     result = BuildResult(out_dir=out_dir, ir_hash=ir.content_hash, booth_name=ir.booth_name,
                          lightings=lightings)
     try:
@@ -111,7 +124,7 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
         (tmp / "manifest.json").write_text(json.dumps(json.loads(canonical_json(manifest)),
                                                       indent=2, sort_keys=True, ensure_ascii=False) + "\n")
         step("finish")
-        atomic_replace_dir(tmp, out_dir)
+        replace_dir(tmp, out_dir)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

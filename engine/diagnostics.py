@@ -46,6 +46,8 @@ CODES: dict[str, str] = {
     "LB009": "unsupported document version",
     "LB010": "file not found",
     "LB011": "path is a directory without a recognised document",
+    "LB012": "not a regular file (a FIFO, device or socket is never read)",
+    "LB013": "file cannot be read (permission or I/O error)",
     "LB100": "unknown key",
     "LB101": "wrong type",
     "LB102": "missing required key",
@@ -78,9 +80,14 @@ CODES: dict[str, str] = {
     "LB406": "measurement file: implausible magnitude (unit mistake?)",
     "LB407": "measurement file: too few rows",
     "LB500": "command-line usage error",
+    "LB501": "invalid environment variable value",
+    "LB510": "the work exceeds a limit",
     "LB600": "build/bake/render failed",
     "LB601": "bake products missing",
     "LB602": "invalid bake job file",
+    "LB610": "output cannot be written there",
+    "LB611": "output exists and was not written by lbscene",
+    "LB612": "output would replace one of the run's inputs",
 }
 
 

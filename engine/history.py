@@ -11,10 +11,10 @@ interrupted run never leaves a half-written history.
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
-from .atomic import write_atomic
 
 __all__ = ["append_history", "read_history", "change_label", "plot_history"]
 
@@ -45,13 +45,24 @@ def change_label(prev: dict | None, cur: dict) -> str:
     return "; ".join(parts) if parts else "no change"
 
 
+#: Bound on a history file's size (about 10 000 entries).
+MAX_HISTORY_BYTES = 32 * 1024 * 1024
+
+
 def read_history(path: Path) -> list[dict]:
-    """Entries of a history file (missing file: none; unreadable lines are skipped)."""
+    """Entries of a history file (missing file: none; unreadable lines are skipped).
+
+    A path that exists but cannot be read (not a regular file, no permission, too large) is a
+    located error, not an empty history.
+    """
+    from .yamlio import read_bytes_bounded
+
     path = Path(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         return []
+    raw = read_bytes_bounded(path, str(path), MAX_HISTORY_BYTES, is_input=False)
     out = []
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+    for line in raw.decode("utf-8", errors="replace").splitlines():
         line = line.strip()
         if not line:
             continue
@@ -64,16 +75,38 @@ def read_history(path: Path) -> list[dict]:
     return out[-MAX_ENTRIES:]
 
 
+def _is_history(path: Path, entries: list[dict]) -> bool:
+    """An existing file lbscene may rewrite: in the ledger, or every line a history entry."""
+    from .outputs import made_by_lbscene
+
+    if made_by_lbscene(path):
+        return True
+    text = path.read_text(encoding="utf-8", errors="replace")
+    lines = [x for x in text.splitlines() if x.strip()]
+    return len(lines) == len(entries) and all("step" in e and "label" in e for e in entries)
+
+
 def append_history(path: Path, entry: dict) -> dict:
-    """Append ``entry`` (adds ``step``, ``time`` and ``label``); atomic rewrite."""
+    """Append ``entry`` (adds ``step``, ``time`` and ``label``); atomic rewrite.
+
+    The history file is lbscene's own; a file of that name that is not a history is never
+    replaced (``LB611``).
+    """
+    from .diagnostics import LbsceneUserError
+    from .outputs import write_output
+
     path = Path(path)
     old = read_history(path)
+    if path.exists() and not _is_history(path, old):
+        raise LbsceneUserError.single(
+            "LB611", "history file exists and is not an lbscene history; it is left as it is", str(path),
+            expected="an lbscene history (JSON lines)", hint="move it away, or run with --no-history")
     entry = dict(entry)
     entry.setdefault("time", time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     entry["step"] = (old[-1].get("step", len(old)) + 1) if old else 1
     entry["label"] = change_label(old[-1] if old else None, entry)
     lines = [json.dumps(e, sort_keys=True, ensure_ascii=False) for e in old + [entry]]
-    write_atomic(path, "\n".join(lines) + "\n")
+    write_output(path, "\n".join(lines) + "\n")
     return entry
 
 

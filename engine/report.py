@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_atomic
+from .outputs import write_output
 
 __all__ = ["render_report", "write_report"]
 
@@ -202,5 +202,5 @@ def write_report(res, out: Path) -> Path:
     matplotlib.use("Agg")
     text = render_report(res)
     out = Path(out)
-    write_atomic(out, text)
+    write_output(out, text, option="--report")
     return out

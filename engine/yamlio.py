@@ -43,6 +43,7 @@ __all__ = [
     "load_yaml_file",
     "load_yaml_text",
     "read_text_bounded",
+    "read_bytes_bounded",
 ]
 
 #: Largest YAML document accepted (booth files are a few kB).
@@ -99,19 +100,57 @@ class YamlDocument:
         return self.positions.file
 
 
-def read_text_bounded(path: Path, display: str, max_bytes: int) -> str:
-    """Read a text file with a size bound and a clear error for binary data."""
+def read_bytes_bounded(path: Path, display: str, max_bytes: int, *, is_input: bool = True) -> bytes:
+    """Read at most ``max_bytes`` of a regular file, or fail with a located diagnostic.
+
+    Only regular files are opened (a FIFO would block, ``/dev/zero`` never ends), and the read
+    itself is bounded: the size ``stat`` reports is not trusted (``/proc`` files report 0).
+    The file is recorded as an input of this run, so no output may replace it (``is_input=False``
+    for a file the run itself rewrites, such as a history).
+    """
+    import stat as _stat
+
+    from .outputs import register_input
+
+    path = Path(path)
     try:
-        size = path.stat().st_size
+        st = path.stat()
     except FileNotFoundError:
-        raise LbsceneUserError.single("LB010", "file not found", display)
-    if path.is_dir():
+        raise LbsceneUserError.single("LB010", "file not found", display) from None
+    except PermissionError:
+        raise LbsceneUserError.single("LB013", "cannot read the file: permission denied", display) from None
+    except OSError as exc:
+        raise LbsceneUserError.single("LB013", f"cannot read the file: {exc.strerror}", display) from None
+    if _stat.S_ISDIR(st.st_mode):
         raise LbsceneUserError.single("LB011", "expected a file, got a directory", display)
-    if size > max_bytes:
+    if not _stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO" if _stat.S_ISFIFO(st.st_mode) else "a device" if _stat.S_ISCHR(st.st_mode)
+                or _stat.S_ISBLK(st.st_mode) else "a socket" if _stat.S_ISSOCK(st.st_mode) else "not a file")
+        raise LbsceneUserError.single("LB012", "not a regular file", display, value=kind,
+                                      expected="a regular file")
+    if st.st_size > max_bytes:
         raise LbsceneUserError.single(
             "LB004", "file is too large", display,
-            value=f"{size} bytes", expected=f"at most {max_bytes} bytes")
-    raw = path.read_bytes()
+            value=f"{st.st_size} bytes", expected=f"at most {max_bytes} bytes")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(max_bytes + 1)
+    except PermissionError:
+        raise LbsceneUserError.single("LB013", "cannot read the file: permission denied", display) from None
+    except OSError as exc:
+        raise LbsceneUserError.single("LB013", f"cannot read the file: {exc.strerror}", display) from None
+    if len(raw) > max_bytes:
+        raise LbsceneUserError.single(
+            "LB004", "file is too large", display,
+            value=f"more than {max_bytes} bytes", expected=f"at most {max_bytes} bytes")
+    if is_input:
+        register_input(path)
+    return raw
+
+
+def read_text_bounded(path: Path, display: str, max_bytes: int) -> str:
+    """Read a text file with a size bound and a clear error for binary data."""
+    raw = read_bytes_bounded(path, display, max_bytes)
     if b"\x00" in raw:
         raise LbsceneUserError.single(
             "LB003", "file contains NUL bytes: binary data, not text", display,
@@ -178,6 +217,7 @@ def _check_expansion(root: Node, display: str) -> None:
     """Count nodes after alias expansion without expanding (memoised on identity)."""
     memo: dict[int, int] = {}
     on_stack: set[int] = set()
+    aliased = [False]   # a node reached twice: the document uses aliases
 
     def size(node: Node, depth: int) -> int:
         if depth > MAX_DEPTH:
@@ -186,6 +226,7 @@ def _check_expansion(root: Node, display: str) -> None:
                                           expected=f"at most {MAX_DEPTH} levels")
         key = id(node)
         if key in memo:
+            aliased[0] = True
             return memo[key]
         if key in on_stack:
             line, col = _mark(node)
@@ -202,6 +243,11 @@ def _check_expansion(root: Node, display: str) -> None:
         memo[key] = total
         if total > MAX_EXPANDED_NODES:
             line, col = _mark(node)
+            if not aliased[0]:   # a big plain document, not an alias bomb
+                raise LbsceneUserError.single(
+                    "LB004", "document has too many values", display, line, col,
+                    value=f"more than {MAX_EXPANDED_NODES} values",
+                    expected=f"at most {MAX_EXPANDED_NODES}")
             raise LbsceneUserError.single(
                 "LB005", "aliases expand to too many values (alias bomb?)", display, line, col,
                 value=f"more than {MAX_EXPANDED_NODES} values",

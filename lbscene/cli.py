@@ -68,6 +68,9 @@ def print_diagnostics(diags, *, stream=None) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning user errors into exit code 2."""
+    from lbscene.engine.outputs import INPUTS
+
+    INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)
     try:
         # with standalone_mode=False click *returns* the code of typer.Exit instead of exiting
         rc = app(args=argv, standalone_mode=False)

@@ -25,6 +25,7 @@ from .executor import GraphExecutor, PassTiming, create_context
 from .scene import CameraSpec, SampleSpec, SceneBuilder
 
 __all__ = [
+    "xyz_view_path",
     "Frame",
     "Renderer",
     "RenderJob",
@@ -139,26 +140,25 @@ def write_png(path: Path, rgba8: np.ndarray, text: dict[str, str] | None = None)
 
     from PIL import Image, PngImagePlugin
 
-    from lbscene.engine.build import write_atomic
+    from lbscene.engine.outputs import write_output
 
     info = PngImagePlugin.PngInfo()
     for k, v in (text or {}).items():
         info.add_text(k, str(v))
     buf = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(rgba8[..., :3])).save(buf, format="PNG", pnginfo=info)
-    write_atomic(Path(path), buf.getvalue())
+    write_output(Path(path), buf.getvalue(), option="output.png")
 
 
 def write_xyz(path: Path, xyz: np.ndarray) -> None:
     """Write float XYZ (H, W, 3) as ``.npy`` or ``.exr`` (channels X, Y, Z), atomically."""
-    from lbscene.engine.atomic import atomic_path
+    from lbscene.engine.outputs import output_path
 
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".npy", ".exr"):
         raise ValueError(f"unsupported XYZ file type {suffix!r} (use .npy or .exr)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path, suffix=suffix) as tmp:
+    with output_path(path, suffix=suffix, option="--xyz") as tmp:
         if suffix == ".npy":
             np.save(tmp, np.asarray(xyz, np.float32))
         else:
@@ -231,6 +231,35 @@ def _err(code, message, loc=None, **kw):
     from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
 
     return LbsceneUserError(Diagnostic(code, message, loc, **kw))
+
+
+def xyz_view_path(xyz: Path, view: str) -> Path:
+    """The XYZ file of one view of a contact sheet: ``<stem>.<view><suffix>``."""
+    return xyz.with_name(f"{xyz.stem}.{view}{xyz.suffix}")
+
+
+def _check_render_outputs(doc, base: Path, png: Path, png_from_cli: bool, xyz: Path | None,
+                          xyz_from_cli: bool, views: list[str] | None, allowed_dirs) -> None:
+    """The output policy for a render (:mod:`lbscene.engine.outputs`): outputs named in the config
+    stay in its folder (unless ``--allow-path``); none replaces an input or a file lbscene did not
+    write; every target is writable.  Checked before any rendering."""
+    from lbscene.engine.outputs import check_output_file
+
+    seen: dict[str, str] = {}
+    items = [(Path(png), "--out" if png_from_cli else "output.png", None if png_from_cli else ("output", "png"))]
+    if xyz is not None:
+        opt, loc = ("--xyz", None) if xyz_from_cli else ("output.xyz", ("output", "xyz"))
+        for p in ([xyz_view_path(Path(xyz), v) for v in views] if views else [Path(xyz)]):
+            items.append((p, opt, loc))
+    for p, opt, loc in items:
+        key = str(p.resolve())
+        if key in seen:
+            raise _err("LB500", f"{opt} and {seen[key]} name the same output", None, value=str(p),
+                       expected="different paths")
+        seen[key] = opt
+        check_output_file(p, option=opt, location=doc.locate(*loc) if loc else None,
+                          confine_to=None if loc is None else base,
+                          allowed_dirs=tuple(Path(d) for d in allowed_dirs))
 
 
 def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_geometries: bool = False,
@@ -336,6 +365,8 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
         raise _err("LB104", f"XYZ output {str(out_xyz)!r} must end in .npy or .exr",
                    None if xyz else doc.locate("output", "xyz"), value=str(out_xyz),
                    expected="a .npy or .exr file name")
+    _check_render_outputs(doc, base, out_png, png is not None, out_xyz, xyz is not None,
+                          views if all_geometries else None, allowed_dirs)
     cam = cfg.camera
     camera = CameraSpec(position_mm=cam.position_mm if cam.type == "free" else None,
                         look_at_mm=cam.look_at_mm, vertical_fov_deg=cam.vertical_fov_deg)

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..outputs import output_path
 from ..spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, to_reference
 from .band_weighting import (band_xyz_weights, cmfs_1nm, illuminant_bands, project_reflectance,
                              reference_xyz)
@@ -359,7 +359,7 @@ def plot_per_patch(results: list[LightingResult], out_png) -> Path:
                  f"dashed: target max {TARGET_MAX_DE00}", fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.55 / fig.get_figheight()))
     try:
-        with atomic_path(out) as tmp:
+        with output_path(out, suffix=".png", option="--plot") as tmp:
             fig.savefig(tmp, format="png", dpi=110)
     finally:
         plt.close(fig)

@@ -123,6 +123,9 @@ def register(app: typer.Typer) -> None:
         if plot is not None and plot.suffix.lower() != ".png":
             raise LbsceneUserError.single("LB500", "--plot must name a .png file", str(plot),
                                           value=str(plot), expected="a path ending in .png")
+        from lbscene.engine.outputs import check_outputs
+
+        check_outputs([(plot, "--plot")], inputs=[*(booth or ()), *(display or ())])
         booths = list(booth) if booth else default_booths()
         displays = [load_display(p, mapping=mapping.value)
                     for p in (list(display) if display else default_displays())]

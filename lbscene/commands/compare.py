@@ -129,6 +129,9 @@ def register(app: typer.Typer) -> None:
 
         from lbscene.engine.compare import run_compare
 
+        from lbscene.engine.outputs import check_outputs
+
+        check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[measurements, booth])
         err = Console(stderr=True)
         prog, cb = diagnosis_progress(err, err.is_terminal)
         with prog:
@@ -144,9 +147,9 @@ def register(app: typer.Typer) -> None:
                 out["report"] = str(report)
             text = json.dumps(out, indent=2, ensure_ascii=False)
             if json_out is not None:
-                from lbscene.engine.atomic import write_atomic
+                from lbscene.engine.outputs import write_output
 
-                write_atomic(json_out, text + "\n")
+                write_output(json_out, text + "\n", option="--json-out")
         if format is Format.json:
             typer.echo(text)
         else:

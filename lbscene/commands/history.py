@@ -25,15 +25,18 @@ def register(app: typer.Typer) -> None:
         from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.history import plot_history, read_history
 
+        from lbscene.engine.outputs import check_outputs
+
         if not measurements.exists():
             raise LbsceneUserError.single("LB010", "file not found", str(measurements))
         hp = measurements.with_name(measurements.stem + ".history.jsonl")
+        check_outputs([(plot, "--plot")], inputs=[measurements, hp if hp.exists() else None])
         entries = read_history(hp)
         if plot is not None and entries:
-            from lbscene.engine.atomic import atomic_path
+            from lbscene.engine.outputs import output_path
 
             fig = plot_history(entries, title=f"history of {measurements.name}")
-            with atomic_path(plot, suffix=".png") as tmp:
+            with output_path(plot, suffix=".png", option="--plot") as tmp:
                 fig.savefig(tmp, format="png", bbox_inches="tight")
         if format is Format.json:
             typer.echo(json.dumps({"history": str(hp), "entries": entries,

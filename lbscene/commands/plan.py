@@ -33,6 +33,9 @@ def register(app: typer.Typer) -> None:
         from lbscene.commands.compare import diagnosis_progress
         from lbscene.engine.compare import plan_for, run_compare
 
+        from lbscene.engine.outputs import check_outputs
+
+        check_outputs([(out, "--out")], inputs=[measurements, booth])
         err = Console(stderr=True)
         prog, cb = diagnosis_progress(err, err.is_terminal)
         with prog:
@@ -40,9 +43,9 @@ def register(app: typer.Typer) -> None:
                               allowed_dirs=tuple(allow_path or ()), progress=cb)
         p = plan_for(res, max_points=points)
         if out is not None and p is not None:
-            from lbscene.engine.atomic import write_atomic
+            from lbscene.engine.outputs import write_output
 
-            write_atomic(out, p.csv_template())
+            write_output(out, p.csv_template(), option="--out")
         if format is Format.json:
             typer.echo(json.dumps({"verdict": res.verdict, "rmse_percent": round(res.fit.rmse_percent, 4),
                                    "plan": p.to_json() if p else None,

@@ -83,6 +83,7 @@ def register(app: typer.Typer) -> None:
             prepare_from_config,
             write_png,
             write_xyz,
+            xyz_view_path,
         )
 
         console = Console(stderr=True)
@@ -121,7 +122,10 @@ def register(app: typer.Typer) -> None:
                 raise
             import ruamel.yaml  # the config names booth and lighting; read them without validating twice
 
-            raw = ruamel.yaml.YAML(typ="safe").load(Path(config).read_text())
+            from lbscene.engine.yamlio import read_text_bounded
+
+            raw = ruamel.yaml.YAML(typ="safe").load(read_text_bounded(Path(config), str(config),
+                                                                      4 * 1024 * 1024))
             booth = Path(config).resolve().parent / raw["booth"]
             _run_bake({"booth": str(booth), "lighting": raw["lighting"]}, console)
             job = prepare()
@@ -176,7 +180,7 @@ def register(app: typer.Typer) -> None:
         xyz_files = []
         if job.xyz is not None:
             for f in frames:
-                p = job.xyz if not all_geometries else job.xyz.with_name(f"{job.xyz.stem}.{f.view}{job.xyz.suffix}")
+                p = job.xyz if not all_geometries else xyz_view_path(job.xyz, f.view)
                 write_xyz(p, f.xyz)
                 xyz_files.append(str(p))
         elapsed = time.perf_counter() - t_start

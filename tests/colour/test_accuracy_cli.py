@@ -26,7 +26,8 @@ def test_json_rows_for_cie_lightings_and_a_booth(run_cli, tmp_path):
         assert r["roundtrip_dithered_max_dE00"] < r["roundtrip_8bit_max_dE00"]
         assert isinstance(r["out_of_gamut_count"], int)
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert [p.name for p in plot.parent.iterdir()] == ["acc.png"]   # no temporary left behind
+    # no temporary left behind; the ledger records that lbscene wrote the plot
+    assert sorted(p.name for p in plot.parent.iterdir()) == [".lbscene-outputs.json", "acc.png"]
 
 
 def test_text_report(run_cli):
