@@ -23,7 +23,6 @@ from __future__ import annotations
 import collections
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -75,14 +74,11 @@ def is_cached(job: BakeJob, out_dir: Path) -> dict | None:
 
 
 def clean_stale_temps(out_dir: Path) -> list[Path]:
-    """Remove temporary folders a killed bake of ``out_dir`` left behind."""
-    out_dir = Path(out_dir)
-    removed = []
-    if out_dir.parent.is_dir():
-        for p in out_dir.parent.glob(f".{out_dir.name}.tmp-*"):
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p)
-    return removed
+    """Remove temporary folders a killed bake of ``out_dir`` left behind (those of live
+    processes, e.g. a concurrent bake, are kept)."""
+    from lbscene.engine.outputs import clean_leftovers
+
+    return clean_leftovers(Path(out_dir).parent, Path(out_dir).name)
 
 
 def _child_env() -> dict:

@@ -680,11 +680,11 @@ def load_job(path: Path | str) -> BakeJob:
 
     from lbscene.engine.diagnostics import LbsceneUserError
 
+    from lbscene.engine.yamlio import read_text_bounded
+
     p = Path(path)
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise LbsceneUserError.single("LB010", "file not found", str(p)) from None
+        data = json.loads(read_text_bounded(p, str(p), 256 * 1024 * 1024))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise LbsceneUserError.single("LB602", f"not a bake job: {exc}", str(p),
                                       expected="a JSON bake job") from None

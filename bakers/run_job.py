@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import shutil
 import sys
-import tempfile
 import traceback
 from pathlib import Path
 
@@ -52,9 +51,11 @@ def main(argv: list[str] | None = None) -> int:
             print(d.format(), file=sys.stderr)
         _emit(event="error", message=str(exc))
         return 2
+    from lbscene.engine.outputs import restore_interrupted, temporary_dir_for
+
     out_dir = args.out_dir.resolve()
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    restore_interrupted(out_dir)
+    tmp = temporary_dir_for(out_dir)
     try:
         from .bake import bake_job
 

@@ -140,10 +140,11 @@ MAX_MESH_BYTES = 64 * 1024 * 1024
 
 
 def _check_mesh_size(path: Path, display: str) -> None:
-    size = path.stat().st_size
-    if size > MAX_MESH_BYTES:
-        raise LbsceneUserError.single("LB004", "mesh file is too large", display,
-                                      value=f"{size} bytes", expected=f"at most {MAX_MESH_BYTES} bytes")
+    """A mesh file must be a regular file within the size bound (a bounded read, not ``stat``),
+    before a mesh library opens it."""
+    from .yamlio import read_bytes_bounded
+
+    read_bytes_bounded(path, display, MAX_MESH_BYTES)
 
 
 def _mesh_from_obj(path: Path, display: str) -> tuple[np.ndarray, np.ndarray]:
@@ -377,7 +378,15 @@ def compile_loaded(doc: LoadedDocument, grid: BandGrid = DEFAULT_GRID) -> SceneI
                             slit_size_mm=ob.slit_size_mm),
         sample_position_mm=booth.sample_position_mm, effects=effects,
         fit=booth.fit.model_dump(mode="json"))
-    return _with_projected_reflectances(ir)
+    ir = _with_projected_reflectances(ir)
+    try:
+        ir.to_json()          # finite floats only: a NaN here would reach every product
+    except ValueError:
+        raise LbsceneUserError.single(
+            "LB600", "the booth's numbers give a non-finite value (NaN or infinity) in the scene IR",
+            display_path(doc.path), expected="a booth whose lamp levels and geometry are finite",
+            hint="check lamp positions against output points and surfaces (LB309), and zero sizes") from None
+    return ir
 
 
 def _with_projected_reflectances(ir: SceneIR) -> SceneIR:

@@ -69,6 +69,7 @@ CODES: dict[str, str] = {
     "LB306": "sample or observer outside the booth",
     "LB307": "effect refers to something the booth does not define",
     "LB308": "a viewing geometry turns the platform out of the booth",
+    "LB309": "a lamp reaches a receiver point or crosses a booth surface",
     "LB310": "illuminance outside ASTM D1729 / ISO 3668 / ISO 3664 recommendations",
     "LB311": "provenance marks values as estimates",
     "LB400": "measurement file: missing or unexpected column",

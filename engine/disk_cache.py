@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["cache_dir", "cached_array", "FORMAT"]
+__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT"]
 
 #: bump when a cached computation changes its result for the same inputs
 FORMAT = "lbscene-geometry-1"
@@ -63,20 +63,57 @@ def _prune(root: Path, max_bytes: int) -> None:
         total -= size
 
 
-def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
+def max_bytes() -> int:
+    """The cache's size bound from ``$LBSCENE_CACHE_MAX_MB`` (a finite number ≥ 0 of MiB).
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB501`` for a value that is not a finite, non-negative number.
+    """
+    raw = os.environ.get("LBSCENE_CACHE_MAX_MB")
+    if raw is None or not raw.strip():
+        return DEFAULT_MAX_MB * 2 ** 20
+    try:
+        mb = float(raw)
+    except ValueError:
+        mb = float("nan")
+    if not np.isfinite(mb) or mb < 0 or mb > 2 ** 30:
+        from .diagnostics import LbsceneUserError
+
+        raise LbsceneUserError.single("LB501", "LBSCENE_CACHE_MAX_MB must be a size in MiB",
+                                      value=repr(raw), expected="a finite number from 0 to 1073741824")
+    return int(mb * 2 ** 20)
+
+
+def _valid(out: np.ndarray, shape: tuple | None) -> bool:
+    """A cache entry is used only with the shape its caller expects and finite values."""
+    if shape is not None and tuple(out.shape) != tuple(shape):
+        return False
+    if out.dtype.kind == "f" and not np.isfinite(out).all():
+        return False
+    return out.dtype.kind in "fiub"
+
+
+def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], np.ndarray],
+                 shape: tuple | None = None) -> np.ndarray:
     """``compute()``, or its earlier result for the same ``kind``, input ``arrays`` and ``params``.
 
     ``kind`` names the computation (a folder of the cache); ``params`` are plain
-    values (numbers, strings, tuples) that change its result.
+    values (numbers, strings, tuples) that change its result.  An entry that cannot be
+    read, or has another ``shape`` than expected, non-finite values or a non-numeric dtype
+    (a damaged or foreign file under the right name), is recomputed and replaced.
     """
     root = cache_dir()
     if root is None:
         return compute()
+    limit = max_bytes()
     path = root / kind / f"{_key(kind, arrays, params)}.npy"
     try:
-        out = np.load(path, allow_pickle=False)
-        os.utime(path)                     # least recently *used* goes first when pruning
-        return out
+        out = np.load(path, allow_pickle=False, mmap_mode=None)
+        if isinstance(out, np.ndarray) and _valid(out, shape):
+            os.utime(path)                     # least recently *used* goes first when pruning
+            return out
     except (OSError, ValueError, EOFError):
         pass
     out = np.asarray(compute())
@@ -85,8 +122,7 @@ def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], 
 
         with atomic_path(path, suffix=".npy") as tmp:
             np.save(tmp, out, allow_pickle=False)
-        max_mb = float(os.environ.get("LBSCENE_CACHE_MAX_MB", DEFAULT_MAX_MB))
-        _prune(root, int(max_mb * 2 ** 20))
+        _prune(root, limit)
     except (OSError, ValueError):
         pass
     return out

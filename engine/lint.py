@@ -11,6 +11,8 @@ LB202  reference to an undefined lamp/filter/reflector/material     error
 LB304  duplicate id                                                error
 LB300  lamp outside the booth interior                             error
 LB306  sample position outside the booth                           error
+LB309  lamp reaches a receiver point or crosses a surface             error
+LB510  more lamps or point sources than the work bound                error
 LB301  spectrum does not cover the band range (390–710 nm)         error
 LB302  reflectance/transmittance outside [0, 1]                    error
 LB307  effect parameter names something the booth lacks            error
@@ -69,7 +71,9 @@ def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
         from .yamlio import read_text_bounded
         from .spectra import MAX_CSV_BYTES
 
-        text = read_text_bounded(resolve(spec.path), spec.path, MAX_CSV_BYTES)
+        from .load import display_path
+
+        text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), MAX_CSV_BYTES)
         rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
         try:
             col = [c.strip() for c in rows[0]].index("wavelength_nm")
@@ -78,6 +82,64 @@ def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
         except (ValueError, IndexError):
             return None  # read_spectrum_csv reports the precise problem
     return None
+
+
+def _segment_distance_mm(p, a, b) -> float:
+    """Distance from point ``p`` to the segment ``a``–``b``."""
+    ab = b - a
+    t = 0.0 if not ab.any() else float(np.clip(np.dot(p - a, ab) / np.dot(ab, ab), 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
+#: The closest a lamp's surface may come to a point the model evaluates (a receiver), in mm.
+LAMP_CLEARANCE_MM = 1.0
+
+
+def _lamp_clearance(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB309: a lamp whose body reaches a point the model must evaluate (the sample position,
+    the point of an ``illuminance_at_point_lx`` output) or crosses a booth wall.  At such a
+    point the inverse-square law divides by zero and every product would carry NaN."""
+    booth: Booth = doc.model
+    out: list[Diagnostic] = []
+    w, d, h = booth.interior.width_mm / 2, booth.interior.depth_mm / 2, booth.interior.height_mm
+    for i, lp in enumerate(booth.lamps):
+        c = np.asarray(lp.position_mm, float)
+        ax = np.asarray(lp.axis, float)
+        ax = ax / np.linalg.norm(ax)
+        half = lp.length_mm / 2 if lp.type in ("tube", "panel") else 0.0
+        a, b = c - ax * half, c + ax * half
+        body = max(lp.radius_mm, 0.0) if lp.type != "panel" else 0.0
+        targets = [("the sample position", np.asarray(booth.sample_position_mm, float), ("sample_position_mm",))]
+        if lp.output.type == "illuminance_at_point_lx":
+            targets.append(("the point of its output", np.asarray(lp.output.point_mm, float),
+                            ("lamps", i, "output", "point_mm")))
+        for what, p, _ in targets:
+            if lp.type == "panel":
+                wdir = np.cross(np.asarray(lp.aim, float), ax)
+                nw = np.linalg.norm(wdir)
+                q = p - c
+                inside = nw > 1e-9 and abs(q @ ax) <= half and abs(q @ (wdir / nw)) <= lp.width_mm / 2
+                dist = abs(q @ np.cross(ax, wdir / nw)) if inside else _segment_distance_mm(p, a, b)
+            else:
+                dist = _segment_distance_mm(p, a, b)
+            if dist - body < LAMP_CLEARANCE_MM:
+                out.append(Diagnostic(
+                    "LB309", f"lamp '{lp.id}' reaches {what}", doc.locate("lamps", i, "position_mm"),
+                    value=f"{max(dist - body, 0.0):.3g} mm from it",
+                    expected=f"at least {LAMP_CLEARANCE_MM:g} mm between the lamp's surface and {what}"))
+        if body > 0:
+            # the lamp's body must not cross the floor, the ceiling or a wall
+            lo = np.minimum(a, b) - body
+            hi = np.maximum(a, b) + body
+            tol = 0.5
+            if lo[2] < -tol or hi[2] > h + tol or lo[0] < -w - tol or hi[0] > w + tol \
+                    or lo[1] < -d - tol or hi[1] > d + tol:
+                out.append(Diagnostic(
+                    "LB309", f"lamp '{lp.id}' (radius {body:g} mm) crosses a booth surface",
+                    doc.locate("lamps", i, "position_mm"),
+                    value=f"extent {np.round(lo, 1).tolist()} … {np.round(hi, 1).tolist()} mm",
+                    expected="the whole lamp inside the interior box"))
+    return out
 
 
 def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnostic]:
@@ -214,6 +276,19 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
     if not _inside(booth.sample_position_mm, booth):
         E("LB306", "sample position is outside the booth", "sample_position_mm",
           value=str(list(booth.sample_position_mm)), expected="a point inside the interior")
+    diags.extend(_lamp_clearance(doc))
+
+    # ---- bounds on the work (before anything is computed)
+    from .limits import LIMITS, limit_value
+
+    for name, count, path in (("lamps", len(booth.lamps), ("lamps",)),
+                              ("source_points", sum(lp.point_sources for lp in booth.lamps), ("lamps",))):
+        n = limit_value(name)
+        if count > n:
+            lim = LIMITS[name]
+            E("LB510", f"{lim.counts}: {count} exceeds the limit of {n}", *path, key=True, value=str(count),
+              expected=f"at most {n} ({lim.cost})",
+              hint=f"raise the limit with the environment variable {lim.env}=N if the machine has the memory")
 
     # ---- spectra: coverage and ranges
     lo_need, hi_need = DEFAULT_GRID.edges_nm[0], DEFAULT_GRID.edges_nm[-1]

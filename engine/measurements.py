@@ -34,7 +34,6 @@ ILLUMINANCE_COLUMNS = ("x_mm", "y_mm", "z_mm", "illuminance_lx", "orientation", 
 #: Columns people write when the unit is not lux: name → factor to lux.
 _UNIT_COLUMNS = {"illuminance_klx": 1000.0, "illuminance_fc": 10.7639, "illuminance": None,
                  "lux": 1.0, "lx": 1.0, "illuminance_mlx": 1e-3}
-_MAX_ROWS = 100_000
 _DUP_TOL_MM = 0.5
 
 
@@ -166,9 +165,9 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
             hline, 1)
     if diags:
         return empty, diags
-    if len(rows) - 1 > _MAX_ROWS:
-        err("LB004", f"more than {_MAX_ROWS} readings", hline, 1)
-        return empty, diags
+    from .limits import check_work
+
+    check_work("readings", len(rows) - 1, SourceLocation(display, hline, 1))
     idx = {h: j for j, h in enumerate(header)}
     pts, nrm, lux, lines, labels = [], [], [], [], []
     for line, r in rows[1:]:
@@ -269,7 +268,9 @@ def _tile_column(spec, resolve):
         return spec
     from .yamlio import read_text_bounded
 
-    text = read_text_bounded(resolve(spec.path), spec.path, 16 * 1024 * 1024)
+    from .load import display_path
+
+    text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), 16 * 1024 * 1024)
     rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
     if rows and "radiance" in [c.strip() for c in rows[0]]:
         return spec.model_copy(update={"column": "radiance"})
@@ -291,7 +292,16 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
     path = Path(path)
     if path.is_dir():
         cands = sorted(path.glob("*.yaml"))
-        ms = [c for c in cands if "kind: measurement_set" in c.read_text(errors="replace")]
+        from .yamlio import read_bytes_bounded
+
+        def is_set(c: Path) -> bool:
+            try:
+                return b"kind: measurement_set" in read_bytes_bounded(c, str(c), 4 * 1024 * 1024,
+                                                                     is_input=False)
+            except LbsceneUserError:
+                return False
+
+        ms = [c for c in cands if is_set(c)]
         if len(ms) != 1:
             raise LbsceneUserError.single("LB011", "cannot tell which measurement set to use in this "
                                           "folder", display_path(path),
@@ -364,6 +374,10 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                               sum((p.files for p in parts), []),
                               np.concatenate([p.lines for p in parts]),
                               sum((p.labels for p in parts), []))
+        if len(parts) > 1:  # the bound on readings holds for the set, not only for each file
+            from .limits import check_work
+
+            check_work("readings", len(ill.lux), doc.locate("illuminance"))
         if len(parts) > 1:  # duplicates across files
             key = np.c_[np.round(ill.points_mm / _DUP_TOL_MM), np.round(ill.normals * 1000)]
             _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)

@@ -149,10 +149,15 @@ class RadiosityTransport:
         key = ("patches", p.patch_size_mm, p.meshes)
         if key not in ctx.cache:
             patches = interior_patches(ir, p.patch_size_mm, p.meshes)
+            from .limits import check_work
+
+            check_work("patches", len(patches.polys),
+                       what=f"inter-reflection patches at patch_size_mm {p.patch_size_mm:g}")
             blockers = mesh_triangles(ir) if p.meshes else np.zeros((0, 3, 3))
             # the booth's heaviest geometry (BYK: 2678 patches, 10 s): kept on disk across runs
             F = cached_array("form_factors", (patches.polys, patches.normals, blockers), (2, 3.0, NUDGE_MM),
-                             lambda: patch_form_factors(patches, blockers=blockers))
+                             lambda: patch_form_factors(patches, blockers=blockers),
+                             shape=(len(patches.polys), len(patches.polys)))
             ctx.cache[key] = (patches, F, blockers)
         self.patches, self.F, self.blockers = ctx.cache[key]
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
@@ -300,7 +305,8 @@ class RadiosityTransport:
 
         def on_disk():
             return cached_array("gather_visibility", (P_rx, seen, polys, nrm, tris),
-                                (GATHER_SUB, GATHER_FINE, NUDGE_MM), compute)
+                                (GATHER_SUB, GATHER_FINE, NUDGE_MM), compute,
+                                shape=seen.shape)
 
         return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), on_disk,
                              limit=32)

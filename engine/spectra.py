@@ -193,7 +193,9 @@ def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
         values = to_reference(sd.wavelengths, sd.values, extrapolate=ext)
     elif t == "csv":
         path = resolve(spec.path)
-        values = read_spectrum_csv(path, str(spec.path), spec.column, kind)
+        from .load import display_path
+
+        values = read_spectrum_csv(path, display_path(path), spec.column, kind)
     elif t == "instrument_file":
         values = _read_instrument(spec, resolve(spec.path), kind)
     else:  # pragma: no cover - the schema's discriminator prevents this
@@ -204,7 +206,12 @@ def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
 def _read_instrument(spec, path: Path, kind: SpectrumKind) -> np.ndarray:
     import colour
 
-    display = str(spec.path)
+    from .load import display_path
+    from .yamlio import read_bytes_bounded
+
+    display = display_path(path)
+    # a regular file of bounded size before the reader of colour-science opens it (a FIFO would block)
+    read_bytes_bounded(path, display, MAX_CSV_BYTES)
     try:
         if spec.format == "ies_tm27_14":
             sd = colour.io.SpectralDistribution_IESTM2714(str(path)).read()

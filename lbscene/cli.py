@@ -72,6 +72,9 @@ def main(argv: list[str] | None = None) -> int:
 
     INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)
     try:
+        from lbscene.engine.limits import check_environment
+
+        check_environment()
         # with standalone_mode=False click *returns* the code of typer.Exit instead of exiting
         rc = app(args=argv, standalone_mode=False)
     except LbsceneUserError as exc:

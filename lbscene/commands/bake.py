@@ -27,6 +27,10 @@ import typer
 from lbscene.commands.options import Format, allow_path_option
 
 
+#: Bound on --samples: 65 536 samples per texel already takes hours for an environment map on a CPU.
+MAX_SAMPLES = 65536
+
+
 class QualityName(str, Enum):
     preview = "preview"
     final = "final"
@@ -45,7 +49,10 @@ def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
 
     if target.is_dir() and (target / "scene.ir.json").is_file():
         try:
-            ir = SceneIR.model_validate_json((target / "scene.ir.json").read_text())
+            from lbscene.engine.yamlio import read_text_bounded
+
+            ir = SceneIR.model_validate_json(read_text_bounded(target / "scene.ir.json",
+                                                               str(target / "scene.ir.json"), 256 * 1024 * 1024))
         except ValueError as exc:
             raise LbsceneUserError.single("LB601", f"unreadable scene IR: {str(exc)[:200]}",
                                           str(target / "scene.ir.json"),
@@ -103,7 +110,7 @@ def register(app: typer.Typer) -> None:
         quality: QualityName = typer.Option(QualityName.preview, "--quality", "-q",
                                             help="preview (fast) or final (grid points sampled "
                                                  "until ≤ 1 % noise)."),
-        samples: Optional[int] = typer.Option(None, "--samples", "-s", min=2,
+        samples: Optional[int] = typer.Option(None, "--samples", "-s", min=2, max=MAX_SAMPLES,
                                               help="Samples per pixel/texel for every product "
                                                    "(fixed: no sampling to a noise target)."),
         out: Optional[Path] = typer.Option(None, "--out", "-o",
@@ -131,6 +138,10 @@ def register(app: typer.Typer) -> None:
         ir, build_dir, jobs = _load_targets(target, lighting, quality.value, samples,
                                             tuple(allow_path or ()))
         root = out or (build_dir / "bake")
+        from lbscene.engine.outputs import check_outputs
+
+        check_outputs([], inputs=[target], dirs=[(root / name, "--out" if out else "bake folder")
+                                                 for name, _ in jobs])
         tasks = [BakeTask(job, root / name, label=f"{ir.booth_name} · {name}") for name, job in jobs]
         results = run_tasks(tasks, force=force, progress=format is Format.text)
         elapsed = time.perf_counter() - t0

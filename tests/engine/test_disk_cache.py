@@ -106,3 +106,33 @@ def test_unwritable_cache_only_costs_time(monkeypatch, tmp_path):
     calls, compute = counter()
     out = disk_cache.cached_array("ff", (np.zeros(2),), (), compute)
     assert out.shape == (3, 2) and calls == [1.0]
+
+
+@pytest.mark.parametrize("bad", ["shape", "nan", "dtype"])
+def test_an_entry_of_the_wrong_shape_or_with_nan_is_recomputed(cache, bad):
+    """A file in the right format under the right name but with the wrong content (a damaged or
+    foreign cache entry) must not reach the caller: it is recomputed and replaced."""
+    calls, compute = counter()
+    a = np.arange(4.0)
+    disk_cache.cached_array("ff", (a,), (), compute, shape=(3, 2))
+    (f,) = (cache / "ff").glob("*.npy")
+    wrong = {"shape": np.ones((5, 5)), "nan": np.full((3, 2), np.nan),
+             "dtype": np.array([["a", "b"]] * 3)}[bad]
+    np.save(f, wrong)
+    out = disk_cache.cached_array("ff", (a,), (), compute, shape=(3, 2))
+    assert calls == [1.0, 1.0]
+    np.testing.assert_array_equal(out, np.ones((3, 2)))
+    np.testing.assert_array_equal(np.load(f), np.ones((3, 2)))        # the bad entry was replaced
+
+
+@pytest.mark.parametrize("value", ["inf", "-1", "nan", "lots", "1e400"])
+def test_cache_size_bound_must_be_a_finite_size(cache, monkeypatch, value):
+    from lbscene.engine.diagnostics import LbsceneUserError
+
+    monkeypatch.setenv("LBSCENE_CACHE_MAX_MB", value)
+    with pytest.raises(LbsceneUserError) as ei:
+        disk_cache.cached_array("ff", (np.zeros(1),), (), lambda: np.zeros(2))
+    d = ei.value.diagnostics[0]
+    assert d.code == "LB501"
+    assert d.format() == (f"error LB501: LBSCENE_CACHE_MAX_MB must be a size in MiB (got {value!r}; "
+                          "expected a finite number from 0 to 1073741824)")
