@@ -33,8 +33,8 @@ from typing import Callable
 from .atomic import atomic_replace_dir, write_atomic
 from .diagnostics import LbsceneUserError
 from .ir import SceneIR, canonical_json
-from .outputs import (_is_input, check_output_dir, register_input, replace_dir, restore_interrupted,
-                      temporary_dir_for)
+from .outputs import (_is_input, check_output_dir, fault_point, register_input, replace_dir,
+                      restore_interrupted, temporary_dir_for)
 
 __all__ = ["BuildResult", "build_booth", "PRODUCT_WRITERS", "atomic_replace_dir", "write_atomic"]
 
@@ -112,6 +112,7 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
             write_stage(ir, folder / "scene.usda", lighting=name)
             for fn in writers:
                 fn(ir, name, folder)
+            fault_point("build-lighting")
         files = sorted(p for p in tmp.rglob("*") if p.is_file())
         result.files = {p.relative_to(tmp).as_posix(): _sha256(p) for p in files}
         from lbscene import __version__
@@ -124,6 +125,7 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
         (tmp / "manifest.json").write_text(json.dumps(json.loads(canonical_json(manifest)),
                                                       indent=2, sort_keys=True, ensure_ascii=False) + "\n")
         step("finish")
+        fault_point("build-finish")
         replace_dir(tmp, out_dir)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -38,6 +38,20 @@ class CompareResult:
     history_entry: dict | None = None
     timing_s: dict = field(default_factory=dict)
     booth_hash: str = ""
+    #: readings far from both the model and their neighbours (file, line, values)
+    outliers: list[dict] = field(default_factory=list)
+    #: whether the fit and the verdict were computed without the outliers
+    outliers_excluded: bool = False
+
+    @property
+    def outlier_note(self) -> str | None:
+        """What the verdict was computed with, when there are outliers."""
+        if not self.outliers:
+            return None
+        n = len(self.outliers)
+        what = f"{n} outlying reading{'s' if n != 1 else ''}"
+        return (f"fit and verdict computed without {what} (--keep-outliers to include them)"
+                if self.outliers_excluded else f"fit and verdict computed with {what} included")
 
     @property
     def verdict(self) -> str:
@@ -96,6 +110,9 @@ class CompareResult:
             "history": ({"path": str(self.meas.history_path), "step": self.history_entry.get("step"),
                          "label": self.history_entry.get("label")} if self.history_entry else None),
             "timing_s": {k: round(v, 3) for k, v in self.timing_s.items()},
+            "outliers": self.outliers,
+            "outliers_excluded": self.outliers_excluded,
+            "outlier_note": self.outlier_note,
         }
         return out
 
@@ -123,10 +140,30 @@ def plan_for(result: CompareResult, max_points: int | None = None):
                              max_points=max_points or MAX_POINTS)
 
 
+def _flag_outliers(meas: Measurements, lux_pred, noise_percent: float) -> tuple[list[dict], np.ndarray]:
+    """Outlying readings (see :mod:`lbscene.engine.outliers`) and the indices of the others."""
+    from .outliers import find_outliers
+
+    ill = meas.illuminance
+    if ill is None or lux_pred is None:
+        return [], np.arange(0)
+    found = find_outliers(ill.points_mm, ill.normals, ill.lux, lux_pred, noise_percent)
+    rows = [{**o.to_json(), "file": ill.files[o.index], "line": int(ill.lines[o.index]),
+             "x_mm": float(ill.points_mm[o.index, 0]), "y_mm": float(ill.points_mm[o.index, 1]),
+             "z_mm": float(ill.points_mm[o.index, 2])} for o in found]
+    keep = np.setdiff1d(np.arange(len(ill)), [o.index for o in found])
+    return rows, keep
+
+
 def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool = True,
                 do_plan: bool | None = None, history: bool = True, allowed_dirs=(),
-                progress=None) -> CompareResult:
-    """Run the measurement loop on a measurement-set file."""
+                progress=None, keep_outliers: bool = False) -> CompareResult:
+    """Run the measurement loop on a measurement-set file.
+
+    Readings far from both the model and their neighbours are flagged; unless
+    ``keep_outliers``, the fit and the diagnosis are computed without them (the result
+    says which, and lists them).
+    """
     from .history import append_history
 
     t = {}
@@ -144,9 +181,18 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
     t1 = time.perf_counter()
     declared = prob.evaluate()
     check_against_prediction(meas, declared.lux_pred, declared.tile_bands_pred, declared.tile_bands_meas)
+    outliers, keep = _flag_outliers(meas, declared.lux_pred, noise.percent)
+    if outliers and not keep_outliers:
+        from dataclasses import replace
+
+        meas = replace(meas, illuminance=meas.illuminance.subset(keep))
+        noise = noise_model(meas)
+        prob = FitProblem(meas, effects, free, noise.percent, noise.spectral_percent, cache)
+        declared = prob.evaluate()
     result_fit = prob.solve() if fit else declared
     t["fit"] = time.perf_counter() - t1
-    res = CompareResult(meas, result_fit, noise, None, booth_hash=ir.content_hash)
+    res = CompareResult(meas, result_fit, noise, None, booth_hash=ir.content_hash, outliers=outliers,
+                        outliers_excluded=bool(outliers) and not keep_outliers)
     if do_diagnose:
         t2 = time.perf_counter()
         res.diagnosis = diagnose(meas, prob, progress=progress, cache=cache)
@@ -169,6 +215,7 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
                                          else noise.percent),
             "verdict": res.verdict,
             "n_points": len(meas.illuminance) if meas.illuminance is not None else 0,
+            "outliers": len(outliers), "outliers_excluded": res.outliers_excluded,
         }
         res.history_entry = append_history(meas.history_path, entry)
     t["total"] = time.perf_counter() - t0

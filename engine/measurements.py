@@ -107,6 +107,10 @@ class Measurements:
 
 # --------------------------------------------------------------------------- CSV
 
+#: No booth reading is brighter than this (direct sunlight is about 100 000 lx).
+MAX_PLAUSIBLE_LX = 1.0e6
+
+
 def _colno(row: list[str], col: int) -> int:
     return sum(len(c) + 1 for c in row[:col]) + 1
 
@@ -196,6 +200,11 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
             err("LB402", "illuminance must be positive" if e == 0 else "negative illuminance", line,
                 _colno(r, idx["illuminance_lx"]), value=repr(r[idx["illuminance_lx"]].strip()),
                 expected="a reading > 0 lx")
+            continue
+        if e > MAX_PLAUSIBLE_LX:
+            err("LB406", "illuminance beyond any light booth (ten times direct sunlight)", line,
+                _colno(r, idx["illuminance_lx"]), value=repr(r[idx["illuminance_lx"]].strip()),
+                expected=f"a reading in lux below {MAX_PLAUSIBLE_LX:g} lx", hint="a unit or typing mistake?")
             continue
         if "orientation" in idx:
             o = r[idx["orientation"]].strip() or default_orientation

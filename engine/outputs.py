@@ -73,6 +73,7 @@ __all__ = [
     "clean_leftovers",
     "made_by_lbscene",
     "restore_interrupted",
+    "fault_point",
 ]
 
 #: Per-folder ledger of the files lbscene wrote there (name → sha256).
@@ -259,10 +260,6 @@ def check_output_file(path: Path | str, *, option: str | None = None,
     if str(path) in ("", "."):
         raise _err("LB610", "expected a file name, got the current folder", path, option, location)
     _confine(path, confine_to, allowed_dirs, option, location)
-    inp = _is_input(path)
-    if inp is not None:
-        raise _err("LB612", "output would replace one of this run's inputs", path, option, location,
-                   value=inp, expected="a path that is not an input")
     try:
         st = path.lstat()
     except FileNotFoundError:
@@ -272,10 +269,14 @@ def check_output_file(path: Path | str, *, option: str | None = None,
                    option, location, expected="a path whose parents are folders") from None
     except OSError as exc:
         raise _err("LB610", f"cannot use this path: {exc.strerror}", path, option, location) from None
+    if st is not None and stat.S_ISDIR(st.st_mode):
+        raise _err("LB610", "is a folder; expected a file name", path, option, location,
+                   expected="a file path")
+    inp = _is_input(path)
+    if inp is not None:
+        raise _err("LB612", "output would replace one of this run's inputs", path, option, location,
+                   value=inp, expected="a path that is not an input")
     if st is not None:
-        if stat.S_ISDIR(st.st_mode):
-            raise _err("LB610", "is a folder; expected a file name", path, option, location,
-                       expected="a file path")
         if stat.S_ISLNK(st.st_mode):
             raise _err("LB611", "is a symbolic link; lbscene does not replace links", path, option, location,
                        expected="a new file or one lbscene wrote")
@@ -550,18 +551,46 @@ def temporary_dir_for(out_dir: Path | str, *, option: str | None = None) -> Path
     return tmp
 
 
-def replace_dir(tmp_dir: Path | str, out_dir: Path | str) -> None:
-    """Move a finished folder into place, replacing ``out_dir`` (kept until then).
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically (Linux ``renameat2(RENAME_EXCHANGE)``); False where unsupported."""
+    import ctypes
 
-    Between the two renames the old folder is a sibling ``.<name>.lbold-<pid>-…``; if the process
-    dies there, the next run of the same output finds the old folder under that name, and restores
-    it when ``out_dir`` is missing (else removes it).
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd, rename_exchange = -100, 2
+    rc = fn(at_fdcwd, os.fsencode(str(a)), at_fdcwd, os.fsencode(str(b)), rename_exchange)
+    return rc == 0
+
+
+def fault_point(name: str) -> None:
+    """Fault injection for the tests: the process dies here, as under ``kill -9``, when the
+    environment variable ``LBSCENE_FAULT`` names this point."""
+    if os.environ.get("LBSCENE_FAULT") == name:
+        os._exit(70)
+
+
+def replace_dir(tmp_dir: Path | str, out_dir: Path | str) -> None:
+    """Move a finished folder into place, replacing ``out_dir``.
+
+    On Linux the two folders are exchanged in one atomic step, so ``out_dir`` is at every
+    moment either the old folder or the new one.  Elsewhere the old folder is first renamed
+    to a sibling ``.<name>.lbold-<pid>-…``; if the process dies between the two renames, the
+    next run of the same output puts it back (:func:`restore_interrupted`).
     """
     out_dir = Path(out_dir)
+    tmp_dir = Path(tmp_dir)
+    if out_dir.exists() and _exchange(tmp_dir, out_dir):
+        fault_point("replace")
+        shutil.rmtree(tmp_dir, ignore_errors=True)        # holds the old folder now
+        return
     old = None
     if out_dir.exists():
         old = _tmp_name(out_dir, kind="lbold")
         os.replace(out_dir, old)
+        fault_point("replace")
     os.replace(tmp_dir, out_dir)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)

@@ -128,7 +128,13 @@ def render_report(res) -> str:
              f"<b>{e(res.meas.lighting)}</b> · effects: {e(', '.join(sorted(res.fit.effects)) or 'none')}</p>"]
     verdict = res.verdict
     cls = "ok" if verdict == "none" else ("warn" if verdict.startswith("ambiguous") else "bad")
-    parts.append(f"<div class='verdict {cls}'>verdict: <b>{e(verdict)}</b></div>")
+    parts.append(f"<div class='verdict {cls}'>verdict: <b>{e(verdict)}</b>"
+                 + (f" <small>({e(res.outlier_note)})</small>" if res.outlier_note else "") + "</div>")
+    if res.outliers:
+        parts.append("<h2>Outlying readings</h2><p>Far from the model and from their neighbours.</p>" + _table(
+            ["file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"],
+            [[f"{o['file']}:{o['line']}", o["x_mm"], o["y_mm"], o["z_mm"], _f(o["measured_lx"]),
+              _f(o["model_lx"]), _f(o["deviation_percent"])] for o in res.outliers]))
     parts.append(_table(["RMSE %", "mean |r| %", "max %", "noise % (used)", "noise % (estimate)",
                          "χ²/dof", "points", "fitted"],
                         [[_f(j["rmse_percent"]), _f(j["mean_abs_percent"]), _f(j["max_percent"]),

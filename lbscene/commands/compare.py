@@ -87,8 +87,17 @@ def print_text(res, console) -> None:
     if d.held:
         console.print("held at the booth's values (these data cannot pin them): " + ", ".join(d.held),
                       style="dim")
+    if res.outliers:
+        t = Table(title="outlying readings (far from the model and from their neighbours)", title_justify="left")
+        for c in ("file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"):
+            t.add_column(c, justify="left" if c == "file:line" else "right")
+        for o in res.outliers:
+            t.add_row(f"{o['file']}:{o['line']}", f"{o['x_mm']:g}", f"{o['y_mm']:g}", f"{o['z_mm']:g}",
+                      f"{o['measured_lx']:.1f}", f"{o['model_lx']:.1f}", f"{o['deviation_percent']:+.1f}")
+        console.print(t)
     style = "green" if d.verdict == "none" else ("yellow" if d.verdict.startswith("ambiguous") else "red")
-    console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]")
+    console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]"
+                  + (f"  ({res.outlier_note})" if res.outlier_note else ""))
     for x in d.explanation:
         console.print(f"  {x}")
     if d.snippet:
@@ -123,6 +132,9 @@ def register(app: typer.Typer) -> None:
         history: bool = typer.Option(True, "--history/--no-history",
                                      help="Append this run to the history next to the measurements."),
         allow_path: Optional[List[Path]] = allow_path_option(),
+        keep_outliers: bool = typer.Option(False, "--keep-outliers",
+                                           help="Fit and diagnose with the readings flagged as outliers "
+                                                "(default: without them; they are listed either way)."),
     ) -> None:
         """Compare a booth model with measurements: errors, fit, missing effect, plan, history."""
         from rich.console import Console
@@ -136,7 +148,8 @@ def register(app: typer.Typer) -> None:
         prog, cb = diagnosis_progress(err, err.is_terminal)
         with prog:
             res = run_compare(measurements, booth=booth, fit=fit, do_diagnose=diagnose, history=history,
-                              allowed_dirs=tuple(allow_path or ()), progress=cb)
+                              allowed_dirs=tuple(allow_path or ()), progress=cb,
+                              keep_outliers=keep_outliers)
         if report is not None:
             from lbscene.engine.report import write_report
 

@@ -1,0 +1,369 @@
+"""Never lose a file, never crash: the output policy, odd inputs, bounded work, outliers.
+
+Every refusal is a located ``LB…`` diagnostic with exit code 2, no traceback, and the
+user's files are byte-for-byte as they were.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lbscene.engine.outputs import LEDGER_NAME
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _digest(root: Path) -> dict:
+    """Every file under ``root`` (or ``root`` itself) with its sha256."""
+    if root.is_file():
+        return {root.name: hashlib.sha256(root.read_bytes()).hexdigest()}
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _no_traceback(err: str) -> None:
+    assert "Traceback" not in err
+
+
+# --------------------------------------------------------------------------- a measurement set by hand
+
+#: the minimal booth: one isotropic 1000 cd point at (0, 0, 700) mm, no effects: E = I·cos θ/d² exactly
+I_CD, LAMP_MM = 1000.0, np.array([0.0, 0.0, 700.0])
+
+
+def closed_form_lux(p_mm) -> np.ndarray:
+    d = LAMP_MM - np.asarray(p_mm, float)
+    r = np.linalg.norm(d, axis=-1) / 1000.0
+    return I_CD * (d[..., 2] / 1000.0 / r) / r ** 2
+
+
+@pytest.fixture
+def meas_set(minimal_booth, tmp_path):
+    """A measurement set of the minimal booth whose readings are the closed form × (1 + 0.5 % noise)."""
+    d = tmp_path / "m"
+    d.mkdir()
+    rng = np.random.default_rng(3)
+    pts = np.array([[x, y, 0.0] for x in np.linspace(-400, 400, 7) for y in np.linspace(-250, 250, 5)])
+    lux = closed_form_lux(pts) * (1 + 0.005 * rng.standard_normal(len(pts)))
+    (d / "grid.csv").write_text("x_mm,y_mm,illuminance_lx\n" + "".join(
+        f"{p[0]:g},{p[1]:g},{e:.3f}\n" for p, e in zip(pts, lux)))
+    (d / "meas.yaml").write_text(
+        "version: 1\nkind: measurement_set\nname: hand-made\n"
+        f"booth: {os.path.relpath(minimal_booth, d)}\nlighting: A\n"
+        "instrument: {illuminance_meter: test meter, repeatability_percent: 0.5}\n"
+        "known_output_groups: [bulb]\n"
+        "illuminance:\n  - path: grid.csv\n")
+    return d / "meas.yaml"
+
+
+# --------------------------------------------------------------------------- build --out
+
+
+@pytest.mark.parametrize("target", ["user_folder", "booth_folder", "regular_file", "cwd", "under_a_file",
+                                    "proc", "with_user_file"])
+def test_build_out_never_replaces_what_lbscene_did_not_make(target, minimal_booth, tmp_path, run_cli):
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "notes.txt").write_text("my notes")
+    afile = tmp_path / "afile.txt"
+    afile.write_text("precious")
+    built = tmp_path / "b"
+    assert run_cli("build", minimal_booth, "--out", built)[0] == 0
+    (built / "mine.txt").write_text("mine") if target == "with_user_file" else None
+    out, code_want, message = {
+        "user_folder": (user, "LB611", "folder exists and is not an lbscene output"),
+        "booth_folder": (minimal_booth, "LB612", "output folder would replace or hold one of this run's inputs"),
+        "regular_file": (afile, "LB610", "exists and is not a folder"),
+        "cwd": (Path("."), "LB610", "the current folder cannot be an output folder"),
+        "under_a_file": (afile / "sub", "LB610", "cannot write here: a parent of this path is a file"),
+        "proc": (Path("/proc/lbscene-test"), "LB610", "cannot write in the folder '/proc'"),
+        "with_user_file": (built, "LB611", "folder holds files lbscene did not write"),
+    }[target]
+    before = {p: _digest(p) for p in (user, afile, minimal_booth, built)}
+    code, stdout, err = run_cli("build", minimal_booth, "--out", out,
+                                cwd=user if target == "cwd" else tmp_path)
+    assert code == 2, err
+    _no_traceback(err)
+    assert f"error {code_want}: --out: {message}" in err
+    assert {p: _digest(p) for p in (user, afile, minimal_booth, built)} == before
+
+
+def test_a_build_lbscene_made_is_replaced_and_leftovers_of_a_killed_run_removed(minimal_booth, tmp_path,
+                                                                              run_cli):
+    out = tmp_path / "b"
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0
+    first = json.loads((out / "manifest.json").read_text())["ir_hash"]
+    # what a build killed with SIGKILL leaves: its temporary folder, named with its (dead) pid
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    stale = tmp_path / f".b.lbtmp-{dead}-deadbeef"
+    stale.mkdir()
+    (stale / "scene.usda").write_text("half")
+    (minimal_booth / "booth.yaml").write_text(
+        (minimal_booth / "booth.yaml").read_text().replace("value_cd: 1000", "value_cd: 1500"))
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0
+    assert json.loads((out / "manifest.json").read_text())["ir_hash"] != first     # rebuilt
+    assert not stale.exists()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".b.")) == []
+
+
+def test_an_empty_folder_is_an_acceptable_build_folder(minimal_booth, tmp_path, run_cli):
+    (tmp_path / "empty").mkdir()
+    assert run_cli("build", minimal_booth, "--out", tmp_path / "empty")[0] == 0
+    assert (tmp_path / "empty" / "manifest.json").is_file()
+
+
+# --------------------------------------------------------------------------- outputs that would replace inputs
+
+
+def test_compare_json_out_naming_its_grid_csv_is_refused(meas_set, run_cli):
+    grid = meas_set.parent / "grid.csv"
+    before = _digest(meas_set.parent)
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--no-diagnose", "--json-out", grid)
+    assert code == 2
+    _no_traceback(err)
+    assert "error LB611: --json-out: file exists and was not written by lbscene" in err or \
+        "error LB612: --json-out: output would replace one of this run's inputs" in err
+    assert _digest(meas_set.parent) == before
+
+
+def test_compare_json_out_naming_the_measurement_set_is_an_input(meas_set, run_cli):
+    before = _digest(meas_set.parent)
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--json-out", meas_set)
+    assert code == 2
+    assert f"{meas_set}: error LB612: --json-out: output would replace one of this run's inputs" in err
+    assert _digest(meas_set.parent) == before
+
+
+@pytest.mark.parametrize("option", ["--json-out", "--report"])
+def test_a_folder_given_for_a_file_output(meas_set, run_cli, option):
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--no-diagnose", option, meas_set.parent)
+    assert code == 2
+    _no_traceback(err)
+    assert f"error LB610: {option}: is a folder; expected a file name (expected a file path)" in err
+
+
+def test_report_and_json_out_replace_their_own_earlier_output_but_not_a_users_file(meas_set, run_cli):
+    rep, js = meas_set.parent / "r.html", meas_set.parent / "r.json"
+    for _ in range(2):     # the second run replaces what the first wrote
+        assert run_cli("compare", meas_set, "--no-history", "--no-diagnose", "--report", rep,
+                       "--json-out", js)[0] == 0
+    assert LEDGER_NAME in os.listdir(meas_set.parent)
+    js.write_text(js.read_text() + " ")                      # edited by the user: now theirs
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--no-diagnose", "--json-out", js)
+    assert code == 2 and "LB611" in err
+    assert js.read_text().endswith(" ")
+
+
+def test_two_options_naming_one_file(meas_set, run_cli):
+    out = meas_set.parent / "x.json"
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--report", out, "--json-out", out)
+    assert code == 2
+    assert "error LB500: --json-out and --report name the same output" in err
+
+
+def test_plan_out_into_a_read_only_place(meas_set, run_cli):
+    code, _, err = run_cli("plan", meas_set, "--out", "/proc/plan.csv")
+    assert code == 2
+    _no_traceback(err)
+    assert "/proc/plan.csv: error LB610: --out: cannot write in the folder '/proc'" in err
+
+
+# --------------------------------------------------------------------------- render configs
+
+
+@pytest.fixture
+def render_cfg(tmp_path):
+    d = tmp_path / "cfg"
+    shutil.copytree(REPO / "tests" / "runtimes" / "data", d)
+    return d
+
+
+@pytest.mark.parametrize("case", ["png_names_config", "png_escapes", "o_names_sample"])
+def test_render_outputs_are_confined_and_never_replace_inputs(render_cfg, run_cli, case):
+    cfg = render_cfg / "tube-gonio.yaml"
+    text = cfg.read_text()
+    args = ["render", cfg, "--no-input"]
+    if case == "png_names_config":
+        cfg.write_text(text.replace("png: out/tube-gonio.png", "png: tube-gonio.yaml"))
+        want = "error LB612: output.png: output would replace one of this run's inputs"
+    elif case == "png_escapes":
+        cfg.write_text(text.replace("png: out/tube-gonio.png", "png: ../escaped.png"))
+        want = "error LB201: output.png: output path escapes the folder of the file that names it"
+    else:
+        args += ["-o", render_cfg / "sample-gonio.yaml"]
+        want = "error LB612: --out: output would replace one of this run's inputs"
+    before = _digest(render_cfg.parent)
+    code, _, err = run_cli(*args)
+    assert code == 2, err
+    _no_traceback(err)
+    assert want in err
+    if case == "png_names_config":
+        assert "tube-gonio.yaml:11:" in err                     # located at the config's output line
+    assert _digest(render_cfg.parent) == before
+
+
+# --------------------------------------------------------------------------- odd input files
+
+
+def _run(*args, timeout=60, env=None):
+    return subprocess.run([sys.executable, "-m", "lbscene", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, cwd=REPO, env={**os.environ, **(env or {})})
+
+
+def test_dev_zero_and_a_fifo_are_refused_at_once(tmp_path):
+    fifo = tmp_path / "booth.yaml"
+    os.mkfifo(fifo)
+    for path, kind in (("/dev/zero", "a device"), (fifo, "a FIFO")):
+        p = _run("validate-config", path, timeout=60)     # a hang would time out here
+        assert p.returncode == 2
+        _no_traceback(p.stderr)
+        assert f"error LB012: not a regular file (got {kind}; expected a regular file)" in p.stdout + p.stderr
+
+
+def test_a_history_that_is_a_fifo_is_not_called_missing(meas_set, run_cli):
+    os.mkfifo(meas_set.with_name("meas.history.jsonl"))
+    code, out, err = run_cli("history", meas_set)
+    assert code == 2
+    assert "error LB012: not a regular file (got a FIFO" in err
+    assert "does not exist" not in out + err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads files whatever their mode")
+def test_an_unreadable_file_is_not_called_missing(minimal_booth, run_cli):
+    f = minimal_booth / "booth.yaml"
+    f.chmod(0)
+    try:
+        code, _, err = run_cli("validate-config", f)
+    finally:
+        f.chmod(0o644)
+    assert code == 2
+    assert "error LB013: cannot read the file: permission denied" in err
+
+
+def test_a_big_plain_document_is_not_called_an_alias_bomb(minimal_booth, run_cli):
+    lamp = ("  - {{id: l{i}, type: point, position_mm: [0, 0, 700], spd: {{type: cie_illuminant, name: A}}, "
+            "output: {{type: peak_intensity_cd, value_cd: 1}}}}\n")
+    text = (minimal_booth / "booth.yaml").read_text()
+    head, tail = text.split("lamps:\n", 1)
+    tail = tail.split("lighting:", 1)[1]
+    (minimal_booth / "booth.yaml").write_text(
+        head + "lamps:\n" + "".join(lamp.format(i=i) for i in range(12000)) + "lighting:" + tail)
+    code, out, err = run_cli("validate-config", minimal_booth)
+    assert code == 2
+    assert "alias" not in out + err
+    assert "error LB004: document has too many values" in out + err
+
+
+# --------------------------------------------------------------------------- bounded work
+
+
+def test_too_many_readings_are_refused_before_any_work(meas_set, run_cli, monkeypatch):
+    monkeypatch.setenv("LBSCENE_MAX_READINGS", "20")
+    code, _, err = run_cli("compare", meas_set, "--no-history")
+    assert code == 2
+    assert ("grid.csv:1:1: error LB510: illuminance readings in one measurement set: 35 exceeds the limit "
+            "of 20") in err
+    assert "hint: raise the limit with the environment variable LBSCENE_MAX_READINGS=N" in err
+
+
+def test_too_many_point_sources_fail_validation(minimal_booth, run_cli):
+    f = minimal_booth / "booth.yaml"
+    lamps = "".join(f"  - {{id: t{i}, type: point, position_mm: [{i * 10 - 100}, 0, 700], point_sources: 9000, "
+                    "spd: {type: cie_illuminant, name: A}, output: {type: peak_intensity_cd, value_cd: 1}}\n"
+                    for i in range(3))
+    f.write_text(f.read_text().replace("lighting:\n", lamps + "lighting:\n"))
+    code, out, err = run_cli("validate-config", minimal_booth)
+    assert code == 2
+    assert ("error LB510: point sources over all lamps (the sum of point_sources): 27100 exceeds the limit "
+            "of 20000") in out + err
+
+
+@pytest.mark.parametrize("var,value", [("LBSCENE_MAX_READINGS", "-3"), ("LBSCENE_MAX_PATCHES", "inf"),
+                                       ("LBSCENE_CACHE_MAX_MB", "inf")])
+def test_environment_variables_are_checked(var, value, minimal_booth, run_cli, monkeypatch):
+    monkeypatch.setenv(var, value)
+    code, _, err = run_cli("validate-config", minimal_booth)
+    assert code == 2
+    _no_traceback(err)
+    assert f"error LB501: {var} must be" in err
+
+
+def test_bake_samples_are_bounded(minimal_booth, run_cli):
+    code, _, err = run_cli("bake", minimal_booth, "--samples", "1000000000")
+    assert code == 2
+    _no_traceback(err)
+    assert "--samples" in err and "65536" in err
+
+
+# --------------------------------------------------------------------------- validation catches what would crash
+
+
+@pytest.mark.parametrize("where,text", [("at the sample", "[0, 0, 0]"), ("in the floor", "[0, 100, 0.2]")])
+def test_a_lamp_at_a_receiver_is_a_validation_error(where, text, minimal_booth, run_cli, tmp_path):
+    f = minimal_booth / "booth.yaml"
+    f.write_text(f.read_text().replace("type: point\n    position_mm: [0, 0, 700]",
+                                       f"type: bulb\n    radius_mm: 10\n    position_mm: {text}"))
+    code, out, err = run_cli("validate-config", minimal_booth)
+    assert code == 2
+    assert "error LB309: lamp 'bulb'" in out + err
+    code, _, err = run_cli("build", minimal_booth, "--out", tmp_path / "b")
+    assert code == 2 and "LB309" in err
+    _no_traceback(err)
+    assert not (tmp_path / "b").exists()
+
+
+def test_an_implausible_reading_is_an_error(meas_set, run_cli):
+    g = meas_set.parent / "grid.csv"
+    lines = g.read_text().splitlines()
+    lines[4] = lines[4].rsplit(",", 1)[0] + ",1e30"
+    g.write_text("\n".join(lines) + "\n")
+    code, _, err = run_cli("compare", meas_set, "--no-history")
+    assert code == 2
+    assert "grid.csv:5:" in err and "error LB406: illuminance beyond any light booth" in err
+
+
+# --------------------------------------------------------------------------- outliers
+
+
+def test_a_mistyped_reading_is_flagged_and_left_out_of_the_verdict(meas_set, run_cli):
+    import json
+
+    g = meas_set.parent / "grid.csv"
+    lines = g.read_text().splitlines()
+    x, y, e = lines[10].split(",")
+    lines[10] = f"{x},{y},{float(e) * 10:.3f}"                  # a dropped decimal point
+    g.write_text("\n".join(lines) + "\n")
+    code, out, _ = run_cli("compare", meas_set, "--no-history", "--format", "json")
+    assert code == 0
+    j = json.loads(out)
+    assert [(o["line"], o["x_mm"], o["y_mm"]) for o in j["outliers"]] == [(11, float(x), float(y))]
+    assert j["outliers_excluded"] is True
+    assert j["outlier_note"] == ("fit and verdict computed without 1 outlying reading "
+                                 "(--keep-outliers to include them)")
+    assert j["n_points"] == 34
+    assert j["verdict"] == "none"                 # the closed form is the model: nothing is missing
+    code, out, _ = run_cli("compare", meas_set, "--no-history", "--format", "json", "--keep-outliers")
+    j = json.loads(out)
+    assert j["n_points"] == 35 and j["outliers_excluded"] is False
+    assert j["outlier_note"] == "fit and verdict computed with 1 outlying reading included"
+    assert j["verdict"] != "none"
+
+
+def test_no_reading_is_flagged_in_clean_data(meas_set, run_cli):
+    import json
+
+    code, out, _ = run_cli("compare", meas_set, "--no-history", "--format", "json")
+    assert code == 0
+    j = json.loads(out)
+    assert j["outliers"] == [] and j["outlier_note"] is None
+    assert j["rmse_percent"] < 1.0                # the model is the closed form
