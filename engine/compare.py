@@ -171,6 +171,10 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
     meas = measurements if isinstance(measurements, Measurements) else load_measurements(
         Path(measurements), booth, allowed_dirs)
     t["load"] = time.perf_counter() - t0
+    if history:
+        from .history import check_history_path
+
+        check_history_path(meas.history_path)        # before the work, not after it
     noise = noise_model(meas)
     ir = meas.ir
     effects = {k: dict(v) for k, v in ir.effects.items()}

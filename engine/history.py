@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 
-__all__ = ["append_history", "read_history", "change_label", "plot_history"]
+__all__ = ["append_history", "check_history_path", "read_history", "change_label", "plot_history"]
 
 MAX_ENTRIES = 10_000
 
@@ -84,6 +84,25 @@ def _is_history(path: Path, entries: list[dict]) -> bool:
     text = path.read_text(encoding="utf-8", errors="replace")
     lines = [x for x in text.splitlines() if x.strip()]
     return len(lines) == len(entries) and all("step" in e and "label" in e for e in entries)
+
+
+def check_history_path(path: Path) -> None:
+    """Before a run's work: the history next to the measurements can be (re)written.
+
+    Raises ``LB611`` for a file of that name that is not an lbscene history, ``LB610`` where
+    nothing can be written, ``LB012``/``LB013`` for an unreadable one.
+    """
+    from .diagnostics import LbsceneUserError
+    from .outputs import _probe_parent
+
+    path = Path(path)
+    if os.path.lexists(path):
+        old = read_history(path)
+        if not _is_history(path, old):
+            raise LbsceneUserError.single(
+                "LB611", "history file exists and is not an lbscene history; it is left as it is", str(path),
+                expected="an lbscene history (JSON lines)", hint="move it away, or run with --no-history")
+    _probe_parent(path, "history", None)
 
 
 def append_history(path: Path, entry: dict) -> dict:

@@ -27,8 +27,10 @@ def register(app: typer.Typer) -> None:
 
         from lbscene.engine.outputs import check_outputs
 
-        if not measurements.exists():
-            raise LbsceneUserError.single("LB010", "file not found", str(measurements))
+        from lbscene.engine.yamlio import read_bytes_bounded
+
+        # a regular, readable file (a FIFO, a device or a folder is refused, not "no history")
+        read_bytes_bounded(measurements, str(measurements), 4 * 1024 * 1024, is_input=False)
         hp = measurements.with_name(measurements.stem + ".history.jsonl")
         check_outputs([(plot, "--plot")], inputs=[measurements, hp if hp.exists() else None])
         entries = read_history(hp)

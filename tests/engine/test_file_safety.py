@@ -367,3 +367,14 @@ def test_no_reading_is_flagged_in_clean_data(meas_set, run_cli):
     j = json.loads(out)
     assert j["outliers"] == [] and j["outlier_note"] is None
     assert j["rmse_percent"] < 1.0                # the model is the closed form
+
+
+def test_a_users_file_under_the_history_name_is_kept_and_refused_before_the_work(meas_set, run_cli):
+    h = meas_set.with_name("meas.history.jsonl")
+    h.write_text("my own log, not an lbscene history\n")
+    code, _, err = run_cli("compare", meas_set)
+    assert code == 2
+    assert (f"{h}: error LB611: history file exists and is not an lbscene history; it is left as it is"
+            in err)
+    assert h.read_text() == "my own log, not an lbscene history\n"
+    assert run_cli("compare", meas_set, "--no-history", "--no-diagnose")[0] == 0
