@@ -56,14 +56,21 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--booths", nargs="*", default=["xrite-spectralight-qc", "byk-byko-spectra-effect"])
     ap.add_argument("--n", nargs="*", type=int, default=[55, 250, 1000])
+    ap.add_argument("--make", nargs=3, metavar=("BOOTH", "N", "OUT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.make:      # in its own process: a forked child would inherit this process's peak RSS
+        make_set(Path(a.make[0]), int(a.make[1]), Path(a.make[2]))
+        return 0
     print("| booth | readings | peak RSS MB | MB per reading (from the first row) | compare s |")
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for b in a.booths:
             first = None
             for n in a.n:
-                m = make_set(REPO / "booths" / b, n, Path(tmp) / f"{b}-{n}")
+                out = Path(tmp) / f"{b}-{n}"
+                subprocess.run([sys.executable, __file__, "--make", str(REPO / "booths" / b), str(n), str(out)],
+                               check=True)
+                m = out / "m.yaml"
                 t0 = time.perf_counter()
                 p = subprocess.run([sys.executable, "-c", _WRAPPER, "compare", str(m), "--no-history",
                                     "--format", "json"], capture_output=True, text=True,

@@ -190,13 +190,26 @@ def render_report(res) -> str:
     hp = _history(res)
     if hp:
         parts.append("<h2>History</h2>" + f"<img src='{hp}' alt='history'>")
+    if j["residuals"]:
+        parts.append("<h2>Every reading</h2>" + _table(
+            ["file:line", "x mm", "y mm", "z mm", "orientation", "measured lx", "model lx", "residual %"],
+            [[f"{r['file']}:{r['line']}", r["x_mm"], r["y_mm"], r["z_mm"], r["orientation"],
+              _f(r["measured_lx"]), _f(r["predicted_lx"]), _f(r["residual_percent"])] for r in j["residuals"]]))
+    import datetime
+
+    from lbscene import __version__
+
+    stamp = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(timespec="seconds")
+    parts.append(f"<p class=meta>lbscene {e(__version__)} · {e(stamp)} · measurements "
+                 f"<code>{e(str(res.meas.path))}</code></p>")
     css = ("body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;color:#222}"
            "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
            "font-size:13px;text-align:right}th{background:#f3f3f3}td:first-child{text-align:left}"
            ".verdict{padding:.6em 1em;margin:1em 0;border-radius:4px;font-size:18px}.ok{background:#e3f4e3}"
            ".warn{background:#fff4d6}.bad{background:#fde4e1}.meta{color:#666;font-size:13px}"
            "pre{background:#f6f6f6;padding:.6em;border:1px solid #ddd}img{max-width:100%}")
-    return ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>lbscene compare: "
+    return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
+            f"<meta name='generator' content='lbscene {e(__version__)}'><title>lbscene compare: "
             f"{e(res.meas.name)}</title><style>{css}</style></head><body>" + "\n".join(parts)
             + "</body></html>\n")
 

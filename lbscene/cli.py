@@ -24,7 +24,7 @@ app = typer.Typer(
     name="lbscene",
     help="Declarative spectral scene engine for light booths.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,       # --install-completion / --show-completion for bash, zsh, fish
     pretty_exceptions_enable=False,
 )
 
@@ -66,8 +66,31 @@ def print_diagnostics(diags, *, stream=None) -> None:
         print(d.format(), file=stream)
 
 
+def _wants_json(argv: list[str]) -> bool:
+    """``--format json`` (or ``--format=json``) on the command line."""
+    for i, a in enumerate(argv):
+        if a == "--format=json" or (a == "--format" and i + 1 < len(argv) and argv[i + 1] == "json"):
+            return True
+    return False
+
+
+def _json_errors(diags, code: int = 2) -> None:
+    """Errors under ``--format json``: one JSON object on stdout (nothing else to parse)."""
+    import json
+
+    print(json.dumps({"ok": False, "exit_code": code, "errors": [d.to_json() for d in diags]},
+                     indent=2, ensure_ascii=False))
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the app, turning user errors into exit code 2."""
+    """Entry point: run the app, turning user errors into exit code 2.
+
+    With ``--format json`` a user error is a JSON object on stdout,
+    ``{"ok": false, "exit_code": 2, "errors": [{code, message, location, …}]}``, instead of text on
+    stderr.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    as_json = _wants_json(argv)
     from lbscene.engine.outputs import INPUTS
 
     INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)
@@ -78,6 +101,9 @@ def main(argv: list[str] | None = None) -> int:
         # with standalone_mode=False click *returns* the code of typer.Exit instead of exiting
         rc = app(args=argv, standalone_mode=False)
     except LbsceneUserError as exc:
+        if as_json:
+            _json_errors(exc.diagnostics)
+            return 2
         print_diagnostics(exc.diagnostics)
         n = len(exc.diagnostics)
         print(f"{n} error{'s' if n != 1 else ''}", file=sys.stderr)
@@ -96,6 +122,11 @@ def main(argv: list[str] | None = None) -> int:
             print("aborted", file=sys.stderr)
             return 1
         if isinstance(exc, click.ClickException):
+            if as_json:
+                from lbscene.engine.diagnostics import Diagnostic
+
+                _json_errors([Diagnostic("LB500", exc.format_message())])
+                return 2
             exc.show()
             return 2
         raise

@@ -107,8 +107,7 @@ def register(app: typer.Typer) -> None:
         Exit 0 when the band weighting meets its target (mean <= 0.1, max <= 0.3 ΔE00) under
         every lighting, 1 otherwise, 2 on a user error.
         """
-        from rich.console import Console
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 
         from lbscene.engine.colour.accuracy import (
             accuracy_rows,
@@ -138,8 +137,10 @@ def register(app: typer.Typer) -> None:
             raise LbsceneUserError.single("LB500", "no lighting to check", "<command line>",
                                           expected="--cie or at least one --booth with lighting")
         results = []
-        with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
-                      console=Console(stderr=True), transient=True,
+        from lbscene.commands.console import err_console, progress
+
+        with progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                      console=err_console(), transient=True,
                       disable=format is Format.json) as prog:
             task = prog.add_task("accuracy", total=len(lightings))
             for label, source, spd in lightings:

@@ -125,7 +125,6 @@ def register(app: typer.Typer) -> None:
                                              help="Which comparison --cross-check runs."),
     ) -> None:
         """Bake spectral light products of a booth with Blender Cycles (env maps, irradiance)."""
-        from rich.console import Console
         from rich.table import Table
 
         from lbscene.bakers.executor import BakeTask, run_tasks
@@ -175,7 +174,9 @@ def register(app: typer.Typer) -> None:
                               f"{row.get('grid_mean_lx', float('nan')):.1f}",
                               f"{row.get('grid_noise_percent', float('nan')):.2f}",
                               f"{row.get('sample_lx_from_env', float('nan')):.1f}")
-            Console().print(table)
+            from lbscene.commands.console import out_console
+
+            out_console().print(table)
             typer.echo(f"{len(results) - len(failed)}/{len(results)} bakes ready ({elapsed:.1f} s)")
             for r in failed:
                 typer.echo(f"error LB600: bake {r.task.label} failed: {r.error}", err=True)

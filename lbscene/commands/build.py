@@ -24,8 +24,7 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Compile a booth: scene IR, USD stage, bake jobs and render graphs, written atomically."""
-        from rich.console import Console
-        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import SpinnerColumn, TextColumn, TimeElapsedColumn
         from rich.table import Table
 
         from lbscene.engine.build import build_booth
@@ -33,9 +32,11 @@ def register(app: typer.Typer) -> None:
 
         booth_file = find_booth_file(booth)
         out_dir = out or Path("build") / booth_file.resolve().parent.name
-        console = Console(stderr=True)
+        from lbscene.commands.console import err_console, out_console, progress
+
+        console = err_console()
         t0 = time.perf_counter()
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+        with progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                       console=console, transient=True, disable=format is Format.json) as prog:
             task = prog.add_task("build", total=None)
             result = build_booth(booth_file, out_dir, lighting,
@@ -52,7 +53,7 @@ def register(app: typer.Typer) -> None:
         table.add_column("sha256", style="dim")
         for name, digest in result.files.items():
             table.add_row(name, digest[:16])
-        Console().print(table)
+        out_console().print(table)
         typer.echo(f"IR {result.ir_hash[:16]}  lightings: {', '.join(result.lightings)}  "
                    f"({elapsed:.2f} s)")
         for w in result.skipped_writers:

@@ -19,9 +19,11 @@ from lbscene.commands.options import (
 
 def diagnosis_progress(console, enabled: bool):
     """A rich progress bar over the diagnosis' candidate refits (context manager + callback)."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
 
-    prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+    from lbscene.commands.console import progress
+
+    prog = progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                     TimeElapsedColumn(), console=console, transient=True, disable=not enabled)
     state = {}
 
@@ -137,15 +139,16 @@ def register(app: typer.Typer) -> None:
                                                 "(default: without them; they are listed either way)."),
     ) -> None:
         """Compare a booth model with measurements: errors, fit, missing effect, plan, history."""
-        from rich.console import Console
 
         from lbscene.engine.compare import run_compare
 
         from lbscene.engine.outputs import check_outputs
 
         check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[measurements, booth])
-        err = Console(stderr=True)
-        prog, cb = diagnosis_progress(err, err.is_terminal)
+        from lbscene.commands.console import err_console, out_console
+
+        err = err_console()
+        prog, cb = diagnosis_progress(err, format is not Format.json)
         with prog:
             res = run_compare(measurements, booth=booth, fit=fit, do_diagnose=diagnose, history=history,
                               allowed_dirs=tuple(allow_path or ()), progress=cb,
@@ -166,6 +169,6 @@ def register(app: typer.Typer) -> None:
         if format is Format.json:
             typer.echo(text)
         else:
-            print_text(res, Console())
+            print_text(res, out_console())
             if report is not None:
                 typer.echo(f"report: {report}")

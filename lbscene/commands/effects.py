@@ -13,7 +13,6 @@ def register(app: typer.Typer) -> None:
     @app.command("effects")
     def effects(format: Format = typer.Option(Format.text, "--format", help="text or json.")) -> None:
         """List the effects a booth's `effects:` section can enable (built-ins and plugins)."""
-        from rich.console import Console
         from rich.table import Table
 
         from lbscene.engine.effects.registry import available_effects
@@ -39,4 +38,6 @@ def register(app: typer.Typer) -> None:
         for r in rows:
             ps = ", ".join(f"{p['name']}={p['default']}{'*' if p['fit_bounds'] else ''}" for p in r["parameters"])
             t.add_row(r["id"], r["kind"], r["summary"], ps or "—")
-        Console().print(t)
+        from lbscene.commands.console import out_console
+
+        out_console().print(t)

@@ -19,10 +19,8 @@ def register(app: typer.Typer) -> None:
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
     ) -> None:
         """Print the compare history of a measurement set (and plot it with --plot)."""
-        from rich.console import Console
         from rich.table import Table
 
-        from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.history import plot_history, read_history
 
         from lbscene.engine.outputs import check_outputs
@@ -45,7 +43,9 @@ def register(app: typer.Typer) -> None:
                                    "plot": str(plot) if plot and entries else None}, indent=2,
                                   ensure_ascii=False))
             return
-        con = Console()
+        from lbscene.commands.console import out_console
+
+        con = out_console()
         if not entries:
             con.print(f"no history yet ({hp} does not exist): run `lbscene compare {measurements}`")
             return

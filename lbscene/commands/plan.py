@@ -27,7 +27,6 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Propose extra readings (positions, orientations) where tied candidates differ most."""
-        from rich.console import Console
         from rich.table import Table
 
         from lbscene.commands.compare import diagnosis_progress
@@ -36,8 +35,10 @@ def register(app: typer.Typer) -> None:
         from lbscene.engine.outputs import check_outputs
 
         check_outputs([(out, "--out")], inputs=[measurements, booth])
-        err = Console(stderr=True)
-        prog, cb = diagnosis_progress(err, err.is_terminal)
+        from lbscene.commands.console import err_console, out_console
+
+        err = err_console()
+        prog, cb = diagnosis_progress(err, format is not Format.json)
         with prog:
             res = run_compare(measurements, booth=booth, do_plan=False, history=False,
                               allowed_dirs=tuple(allow_path or ()), progress=cb)
@@ -51,7 +52,7 @@ def register(app: typer.Typer) -> None:
                                    "plan": p.to_json() if p else None,
                                    "csv": str(out) if out and p else None}, indent=2, ensure_ascii=False))
             return
-        con = Console()
+        con = out_console()
         con.print(f"verdict: [bold]{res.verdict}[/bold]  (RMSE {res.fit.rmse_percent:.2f} %, noise "
                   f"{res.noise.percent:.2g} %)")
         if p is None or not p.points:

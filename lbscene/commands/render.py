@@ -65,11 +65,9 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Render a sample in a virtual booth (spectral, 16 bands) to a display-encoded PNG."""
-        from rich.console import Console
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
-            Progress,
             SpinnerColumn,
             TextColumn,
             TimeElapsedColumn,
@@ -86,7 +84,9 @@ def register(app: typer.Typer) -> None:
             xyz_view_path,
         )
 
-        console = Console(stderr=True)
+        from lbscene.commands.console import err_console, out_console, progress
+
+        console = err_console()
         wh = None
         if size is not None:
             try:
@@ -140,7 +140,7 @@ def register(app: typer.Typer) -> None:
         if len(job.views) > 1:
             columns.append(BarColumn())
             columns.append(MofNCompleteColumn())
-        with Progress(*columns, TimeElapsedColumn(), console=console, transient=True,
+        with progress(*columns, TimeElapsedColumn(), console=console, transient=True,
                       disable=format is Format.json) as prog:
             task = prog.add_task("render: GL context", total=len(job.views))
             try:
@@ -219,7 +219,7 @@ def register(app: typer.Typer) -> None:
             table.add_row(f.view, f"{r.get('illumination_deg', 0):.1f}", f"{r.get('viewing_deg', 0):.1f}",
                           f"{r.get('aspecular_deg', 0):.1f}", f"{f.info.get('sample_illuminance_lx', 0):.0f}",
                           f"{og.get('pixels', 0)} px ({100 * og.get('fraction', 0):.1f} %, max {og.get('max_excess', 0):.3f})")
-        Console().print(table)
+        out_console().print(table)
         if job.diffuse == "analytic" and job.bake_note:
             typer.echo(f"note: diffuse light is analytic: {job.bake_note}; run `lbscene bake` for baked "
                        "lighting", err=True)

@@ -53,7 +53,7 @@ def mset(tmp_path, monkeypatch):
 
 
 def run(capsys, *args) -> tuple[int, str]:
-    rc = main(["compare", *args, "--no-fit", "--format", "json"])
+    rc = main(["compare", *args, "--no-fit", "--no-diagnose", "--no-history"])
     err = capsys.readouterr().err
     assert "Traceback" not in err
     return rc, err

@@ -1,0 +1,94 @@
+"""Terminal conventions shared by the commands.
+
+* On a terminal: rich tables and live progress bars (on stderr).
+* Piped or redirected: tables as wide as they need (``$COLUMNS`` if set, else 200
+  characters; cells wrap instead of being cut with "…"), and progress as plain lines,
+  one per step, on stderr — a log keeps them, a pipe is not filled with escape codes.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+__all__ = ["out_console", "err_console", "progress", "PlainProgress"]
+
+#: Width of tables written to a pipe or a file (no terminal to fit).
+PIPED_WIDTH = 200
+
+
+def _width(stream) -> int | None:
+    if stream.isatty():
+        return None
+    try:
+        return max(40, int(os.environ["COLUMNS"]))
+    except (KeyError, ValueError):
+        return PIPED_WIDTH
+
+
+def out_console():
+    """Console for a command's result (stdout)."""
+    from rich.console import Console
+
+    return Console(width=_width(sys.stdout))
+
+
+def err_console():
+    """Console for progress and notes (stderr)."""
+    from rich.console import Console
+
+    return Console(stderr=True, width=_width(sys.stderr))
+
+
+class PlainProgress:
+    """The part of :class:`rich.progress.Progress` the commands use, as plain lines."""
+
+    def __init__(self, stream=None, prefix: str = "") -> None:
+        self.stream = stream or sys.stderr
+        self.tasks: dict[int, dict] = {}
+        self.t0 = time.perf_counter()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def _say(self, tid: int) -> None:
+        t = self.tasks[tid]
+        count = f" ({t['completed']}/{t['total']})" if t["total"] else ""
+        line = f"{t['description']}{count}"
+        if line != t.get("said"):
+            t["said"] = line
+            print(f"[{time.perf_counter() - self.t0:6.1f} s] {line}", file=self.stream, flush=True)
+
+    def add_task(self, description: str, total=None, **_) -> int:
+        tid = len(self.tasks)
+        self.tasks[tid] = {"description": description, "total": total, "completed": 0}
+        self._say(tid)
+        return tid
+
+    def update(self, tid: int, *, description: str | None = None, completed=None, total=None, **_) -> None:
+        t = self.tasks[tid]
+        if description is not None:
+            t["description"] = description
+        if completed is not None:
+            t["completed"] = completed
+        if total is not None:
+            t["total"] = total
+        self._say(tid)
+
+    def advance(self, tid: int, amount: float = 1) -> None:
+        self.tasks[tid]["completed"] += amount
+        self._say(tid)
+
+
+def progress(*columns, console=None, transient: bool = True, disable: bool = False):
+    """A rich progress display on a terminal, plain lines otherwise, nothing when ``disable``."""
+    from rich.progress import Progress
+
+    console = console or err_console()
+    if disable or console.is_terminal:
+        return Progress(*columns, console=console, transient=transient, disable=disable)
+    return PlainProgress(console.file)
