@@ -8,7 +8,7 @@ STAMP := $(VENV)/.lbscene-installed
 # Headless GL through Mesa's EGL (llvmpipe) on machines without a GPU.
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: venv demo test test-all bench schemas clean
+.PHONY: venv demo test test-all bench schemas check-wheel docs clean
 
 $(STAMP): pyproject.toml constraints.txt scripts/install-system-deps.sh
 	bash scripts/install-system-deps.sh
@@ -35,6 +35,10 @@ bench: $(STAMP)
 
 schemas: $(STAMP)
 	$(BIN)/python -m lbscene.schemas.export
+
+# sdist -> wheel -> fresh venv (not editable, no bpy) -> validate, build and render a shipped booth
+check-wheel: $(STAMP)
+	PYTHON=$(BIN)/python PYTHON_BASE=$(PYTHON) bash scripts/check_wheel.sh
 
 clean:
 	rm -rf build .pytest_cache
