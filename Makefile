@@ -36,6 +36,16 @@ bench: $(STAMP)
 schemas: $(STAMP)
 	$(BIN)/python -m lbscene.schemas.export
 
+# the documentation site: reference pages generated from the code, then MkDocs with warnings as errors
+DOCS_STAMP := $(VENV)/.lbscene-docs-installed
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install -q -c constraints.txt -e ".[docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(BIN)/python scripts/gen_docs.py
+	$(BIN)/mkdocs build --strict
+
 # sdist -> wheel -> fresh venv (not editable, no bpy) -> validate, build and render a shipped booth
 check-wheel: $(STAMP)
 	PYTHON=$(BIN)/python PYTHON_BASE=$(PYTHON) bash scripts/check_wheel.sh
