@@ -10,9 +10,10 @@ namespace through the codeless API schemas in ``engine/usd_schema``
 at run time.
 
 Units: the stage is in millimetres (``metersPerUnit = 0.001``), +Z up, booth
-coordinates.  UsdLux ``intensity`` is set to the lamp's mean luminance in
-nits (cd/m²) over its projected area along ``aim``, with ``color`` its linear
-sRGB chromaticity; the exact spectral radiant intensity is in
+coordinates.  UsdLux ``intensity`` × the luminance of ``color`` is the lamp's
+mean luminance in nits (cd/m²) over its projected area along ``aim`` (area in
+m²: the stage's millimetres × ``metersPerUnit``); ``color`` is its linear sRGB
+chromaticity with peak 1; the exact spectral radiant intensity is in
 ``lbscene:spectral:*``.
 
 So that the stage renders right in a standard tool:
@@ -102,6 +103,8 @@ def _linear_srgb(values_1nm: np.ndarray) -> tuple[float, float, float]:
 _XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
                          [-0.9692660, 1.8760108, 0.0415560],
                          [0.0556434, -0.2040259, 1.0572252]])
+#: luminance of linear Rec. 709 / sRGB (the Y row of the sRGB → XYZ matrix, IEC 61966-2-1)
+_REC709_Y = np.array([0.2126729, 0.7151522, 0.0721750])
 _D65_XYZ = np.array([0.3127 / 0.3290, 1.0, (1.0 - 0.3127 - 0.3290) / 0.3290])
 
 
@@ -297,9 +300,13 @@ def _define_lamps(stage, ir: SceneIR, lamp_ids) -> None:
                 light.CreateTreatAsPointAttr(True)
             area_m2 = np.pi * (r * 1e-3) ** 2
         _orient(UsdGeom.Xformable(light.GetPrim()), lp.position_mm, lp.axis, lp.aim)
-        light.CreateIntensityAttr(float(f"{lp.peak_luminous_intensity_cd / area_m2:.8g}"))
+        colour = _linear_srgb(ir.lamp_emission_1nm(lp, with_filter=True))
+        # UsdLux: emitted luminance = intensity × luminance of `color`; the colour is kept in
+        # [0, 1] (peak 1), so the intensity carries 1/Y(colour): intensity·Y·area = peak cd
+        y_colour = float(np.dot(_REC709_Y, colour)) or 1.0
+        light.CreateIntensityAttr(float(f"{lp.peak_luminous_intensity_cd / area_m2 / y_colour:.8g}"))
         light.CreateNormalizeAttr(False)
-        light.CreateColorAttr(Gf.Vec3f(*_linear_srgb(ir.lamp_emission_1nm(lp, with_filter=True))))
+        light.CreateColorAttr(Gf.Vec3f(*colour))
         prim = light.GetPrim()
         shaping = UsdLux.ShapingAPI.Apply(prim)
         prof = lp.profile

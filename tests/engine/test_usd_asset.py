@@ -200,3 +200,29 @@ def test_ies_file_copied_and_referenced_relatively(minimal_booth, tmp_path):
         got = read_ies(resolved, "bulb.ies")
         np.testing.assert_array_equal(got.candela, [[200, 150, 60, 0]])
         assert validate_stage(stage_path) == []
+
+
+def test_light_intensity_times_colour_luminance_is_the_peak_candela(splqc_build):
+    """UsdLux: luminance = intensity × Y(color) (Rec. 709 luminance weights, IEC 61966-2-1), area in m²
+    from the stage's millimetres and metersPerUnit."""
+    from pxr import Usd, UsdGeom, UsdLux
+
+    out, ir = splqc_build
+    stage = Usd.Stage.Open(str(out / "lighting" / "A" / "scene.usda"))
+    mpu = UsdGeom.GetStageMetersPerUnit(stage)
+    y709 = np.array([0.2126, 0.7152, 0.0722])
+    for lp in ir.lamps:
+        if lp.id not in ir.lighting["A"].lamps:
+            continue
+        prim = stage.GetPrimAtPath(f"/Booth/Lamps/{lp.id}")
+        light = UsdLux.LightAPI(prim)
+        if prim.IsA(UsdLux.CylinderLight):
+            c = UsdLux.CylinderLight(prim)
+            area_m2 = c.GetLengthAttr().Get() * 2 * c.GetRadiusAttr().Get() * mpu ** 2
+        elif prim.IsA(UsdLux.RectLight):
+            r = UsdLux.RectLight(prim)
+            area_m2 = r.GetWidthAttr().Get() * r.GetHeightAttr().Get() * mpu ** 2
+        else:
+            area_m2 = np.pi * (UsdLux.SphereLight(prim).GetRadiusAttr().Get() * mpu) ** 2
+        cd = light.GetIntensityAttr().Get() * float(y709 @ np.array(light.GetColorAttr().Get())) * area_m2
+        assert cd == pytest.approx(lp.peak_luminous_intensity_cd, rel=2e-4), lp.id
