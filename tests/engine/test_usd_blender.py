@@ -1,6 +1,7 @@
 """Round trip of the USD stage through another tool: Blender's USD importer (``bpy.ops.wm.usd_import``)
 reads ``lighting/<name>/scene.usda``, Cycles renders a white Lambertian probe at the sample, and the
-illuminance there matches the closed form of a Lambertian rectangle and lbscene's forward model.
+illuminance there matches the closed form of a Lambertian rectangle, lbscene's forward model and
+lbscene's own Cycles bake (``lbscene bake``).
 
 Blender 5.0's importer converts UsdLux units as the UsdLux documentation says for rectangle lights
 (radiance = intensity × color); it does not for sphere and cylinder lights (it ignores their size and
@@ -84,5 +85,12 @@ def test_blender_imports_the_stage_and_cycles_sees_the_same_illuminance(tmp_path
     e_closed = lambertian_rectangle_lx(1000.0, 0.2, 0.1, 0.7)
     ir = compile_booth(tmp_path / "booth")
     e_lbscene = float(ForwardModel(ir, "A").illuminance_lx([[0.0, 0.0, 0.0]])[0])
+    # lbscene's own Cycles bake of the same build (its scene is made from the IR, not from USD)
+    bake = subprocess.run([sys.executable, "-m", "lbscene", "bake", str(tmp_path / "build"), "--lighting", "A",
+                           "--quality", "preview", "--format", "json"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert bake.returncode == 0, bake.stderr[-2000:]
+    e_bake = json.loads(bake.stdout)["bakes"][0]["sample_lx_from_env"]
     assert e_blender == pytest.approx(e_closed, rel=0.05)
     assert e_blender == pytest.approx(e_lbscene, rel=0.05)
+    assert e_blender == pytest.approx(e_bake, rel=0.05)
