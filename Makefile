@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml constraints.txt scripts/install-system-deps.sh
 	bash scripts/install-system-deps.sh
 	@command -v $(PYTHON) >/dev/null || { echo "need $(PYTHON)"; exit 2; }
 	[ -x $(BIN)/python ] || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade "pip>=24" "setuptools>=68" wheel
+	$(BIN)/python -m pip install -q --upgrade "pip>=24" "setuptools>=77" wheel
 	# constraints.txt pins numpy<2 (bpy 5.0); every install goes through it.
 	$(BIN)/python -m pip install -q -c constraints.txt -e ".[bake,dev]"
 	touch $(STAMP)

@@ -42,7 +42,7 @@ def test_file_reference_units_defaults_and_validated_examples(gen_docs):
     sections = _sections(gen_docs.files_page())
     lamp = sections["Lamp"]
     assert "| `position_mm` | [number, number, number] | mm | **required** |" in lamp
-    assert "| `point_sources` | integer |  | `100` | ≥ `1`, ≤ `10000` |" in lamp
+    assert "| `width_px` | integer | px | `1024` | ≥ `16`, ≤ `8192` |" in sections["RenderOutput"]
     assert "Example (from `booths/" in lamp
     # the render configuration documents the adaptation choice, with its default
     assert "| `adaptation` | one of `cat16`, `none` |  | `cat16` |" in sections["RenderConfig"]
