@@ -8,13 +8,13 @@ STAMP := $(VENV)/.lbscene-installed
 # Headless GL through Mesa's EGL (llvmpipe) on machines without a GPU.
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: venv demo test test-all bench schemas clean
+.PHONY: venv demo test test-all bench schemas check-wheel docs clean
 
 $(STAMP): pyproject.toml constraints.txt scripts/install-system-deps.sh
 	bash scripts/install-system-deps.sh
 	@command -v $(PYTHON) >/dev/null || { echo "need $(PYTHON)"; exit 2; }
 	[ -x $(BIN)/python ] || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade "pip>=24" "setuptools>=68" wheel
+	$(BIN)/python -m pip install -q --upgrade "pip>=24" "setuptools>=77" wheel
 	# constraints.txt pins numpy<2 (bpy 5.0); every install goes through it.
 	$(BIN)/python -m pip install -q -c constraints.txt -e ".[bake,dev]"
 	touch $(STAMP)
@@ -35,6 +35,20 @@ bench: $(STAMP)
 
 schemas: $(STAMP)
 	$(BIN)/python -m lbscene.schemas.export
+
+# the documentation site: reference pages generated from the code, then MkDocs with warnings as errors
+DOCS_STAMP := $(VENV)/.lbscene-docs-installed
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install -q -c constraints.txt -e ".[docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(BIN)/python scripts/gen_docs.py
+	$(BIN)/mkdocs build --strict
+
+# sdist -> wheel -> fresh venv (not editable, no bpy) -> validate, build and render a shipped booth
+check-wheel: $(STAMP)
+	PYTHON=$(BIN)/python PYTHON_BASE=$(PYTHON) bash scripts/check_wheel.sh
 
 clean:
 	rm -rf build .pytest_cache

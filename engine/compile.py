@@ -40,7 +40,15 @@ def find_booth_file(path: Path | str) -> Path:
                                           display_path(p), expected=f"a folder with {BOOTH_FILENAME}")
         return f
     if not p.exists():
-        raise LbsceneUserError.single("LB010", "file not found", str(p))
+        from .shipped import shipped_booth, shipped_booths
+
+        # a bare name that is not a path here: one of the booths shipped with lbscene
+        if len(p.parts) == 1 and (shipped := shipped_booth(p.name)) is not None:
+            return shipped
+        raise LbsceneUserError.single(
+            "LB010", "file not found", str(p),
+            expected=("a booth folder, a booth.yaml, or a shipped booth: "
+                      + ", ".join(shipped_booths())) if len(p.parts) == 1 else None)
     return p
 
 

@@ -174,10 +174,16 @@ def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
     elif t in ("cie_illuminant", "light_source"):
         sd = _colour_dataset_sd("illuminant" if t == "cie_illuminant" else "light_source", spec.name)
         if sd is None:
+            import difflib
+
+            dataset = "illuminant" if t == "cie_illuminant" else "light_source"
+            close = difflib.get_close_matches(spec.name, known_names(dataset), n=3, cutoff=0.5)
             raise LbsceneUserError.single(
                 "LB204", f"unknown {t.replace('_', ' ')} {spec.name!r}", display,
                 expected="a name in colour.SDS_ILLUMINANTS" if t == "cie_illuminant"
-                else "a name in colour.SDS_LIGHT_SOURCES (see `lbscene effects --spectra`)")
+                else "a name in colour.SDS_LIGHT_SOURCES",
+                hint=(f"did you mean {', '.join(repr(c) for c in close)}? " if close else "")
+                + "Every name is listed in the documentation's file reference (Named spectra).")
         values = to_reference(sd.wavelengths, sd.values, extrapolate=ext)
     elif t == "blackbody":
         import colour

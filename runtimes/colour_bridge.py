@@ -36,6 +36,7 @@ __all__ = [
     "project_reflectance",
     "blue_noise_mask",
     "DisplayUniforms",
+    "D65_WHITE_XYZ",
     "srgb_display",
     "display_uniforms",
     "colour_module_features",
@@ -142,6 +143,15 @@ class DisplayUniforms:
     gamut_mapping: int = 1               # 0 clip, 1 chroma (constant luminance toward the neutral)
     y_span_cd_m2: float | None = None     # white − black luminance (default: white_Y_cd_m2)
     source: str = "builtin"
+    #: XYZ (cd/m²) of the display's white as seen: the white chromatic adaptation aims at
+    white_xyz_cd_m2: np.ndarray | None = None
+
+    @property
+    def adapted_white_xyz(self) -> np.ndarray:
+        """The display's white (cd/m²); D65 at ``white_Y_cd_m2`` when not given."""
+        if self.white_xyz_cd_m2 is not None:
+            return np.asarray(self.white_xyz_cd_m2, float)
+        return D65_WHITE_XYZ * self.white_Y_cd_m2
 
     @property
     def inv_y_span(self) -> float:
@@ -158,6 +168,10 @@ class DisplayUniforms:
         out = np.zeros((1, len(lut), 4), np.float32)
         out[0, :, :3] = lut
         return out
+
+
+#: CIE D65 at Y = 1 from its IEC 61966-2-1 chromaticity (0.3127, 0.3290).
+D65_WHITE_XYZ = np.array([0.3127 / 0.3290, 1.0, (1.0 - 0.3127 - 0.3290) / 0.3290])
 
 
 def srgb_display(white_Y_cd_m2: float = 80.0) -> DisplayUniforms:
@@ -191,4 +205,5 @@ def display_uniforms(path=None) -> DisplayUniforms:
         tone_params=np.asarray(u.get("tone_params", np.tile([1.0, 0.0, 2.2, 0.0], (3, 1))),
                                float).reshape(3, 4),
         tone_lut=None if u.get("tone_lut") is None else np.asarray(u["tone_lut"], float).reshape(-1, 3),
+        white_xyz_cd_m2=np.asarray(u["xyz_white_seen"], float).reshape(3),
         source=f"colour module: {path}")

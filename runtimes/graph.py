@@ -336,7 +336,8 @@ LIB_DISPLAY = "lib_display.glsl"
 LIB_DITHER = "lib_dither.glsl"
 RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
 DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"}
-DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_xyz_offset": "display.xyz_offset",
+DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_adaptation": "display.adaptation",
+                    "u_xyz_offset": "display.xyz_offset",
                     "u_xyz_to_rgb": "display.xyz_to_rgb", "u_tone_params": "display.tone_params",
                     "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span"}
 DITHER_UNIFORMS = {"u_noise_size": "dither.noise_size", "u_dither_amplitude": "dither.amplitude"}
@@ -478,6 +479,8 @@ _VALUES_DOC = {
     "sample.f0": "float, Fresnel reflectance at normal incidence of the coat (n = 1.567: 0.0492)",
     "ltc.size": "int, side of the LTC tables",
     "display.exposure": "float, absolute XYZ → display XYZ scale (cd/m² per cd/m²)",
+    "display.adaptation": "mat3, chromatic adaptation: XYZ under the lighting → corresponding XYZ "
+                          "under the display white (CAT16, or the identity)",
     "display.xyz_offset": "vec3, XYZ subtracted before the matrix: display black + reflected ambient",
     "display.xyz_to_rgb": "mat3, display XYZ → linear channel values (1 = channel peak)",
     "display.tone_kind": "int, 0 sRGB piecewise, 1 GOG (gain, offset, gamma), 2 LUT (a #define)",

@@ -59,9 +59,10 @@ class Renderer:
     def __init__(self, ir, graph: dict, sample: SampleSpec, display, *, bake=None,
                  diffuse: str = "analytic", exposure: str = "relative_white", white_fraction: float = 1.0,
                  dither: bool = True, camera: CameraSpec | None = None, ctx=None,
-                 device_index: int | None = None):
+                 device_index: int | None = None, adaptation: str = "cat16"):
         self.scene = SceneBuilder(ir, graph, sample, display, bake=bake, diffuse=diffuse, exposure=exposure,
-                                  white_fraction=white_fraction, dither=dither, camera=camera)
+                                  white_fraction=white_fraction, dither=dither, camera=camera,
+                                  adaptation=adaptation)
         self.graph = graph
         self.ctx = ctx if ctx is not None else create_context(device_index)
         self._own_ctx = ctx is None
@@ -220,11 +221,13 @@ class RenderJob:
     dither: bool = True
     camera: CameraSpec = field(default_factory=CameraSpec)
     notes: list[str] = field(default_factory=list)
+    adaptation: str = "cat16"
 
     def renderer(self, ctx=None, device_index: int | None = None) -> Renderer:
         return Renderer(self.ir, self.graph, self.sample, self.display, bake=self.bake,
                         diffuse=self.diffuse, exposure=self.exposure, white_fraction=self.white_fraction,
-                        dither=self.dither, camera=self.camera, ctx=ctx, device_index=device_index)
+                        dither=self.dither, camera=self.camera, ctx=ctx, device_index=device_index,
+                        adaptation=self.adaptation)
 
 
 def _err(code, message, loc=None, **kw):
@@ -265,9 +268,11 @@ def _check_render_outputs(doc, base: Path, png: Path, png_from_cli: bool, xyz: P
 def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_geometries: bool = False,
                         size: tuple[int, int] | None = None, png: Path | None = None,
                         xyz: Path | None = None, diffuse: str | None = None,
-                        bake_dirs: list[Path] | None = None, allowed_dirs=()) -> RenderJob:
+                        bake_dirs: list[Path] | None = None, allowed_dirs=(),
+                        adaptation: str | None = None) -> RenderJob:
     """Load and check a render configuration; everything a user can get wrong raises
-    :class:`~lbscene.engine.diagnostics.LbsceneUserError` with a location."""
+    :class:`~lbscene.engine.diagnostics.LbsceneUserError` with a location.  Keyword arguments
+    other than ``bake_dirs`` and ``allowed_dirs`` override the configuration's fields."""
     from lbscene.engine.compile import compile_booth, find_booth_file
     from lbscene.engine.load import display_path, load_document
     from lbscene.schemas.render_config import RenderConfig
@@ -378,4 +383,4 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                      png=Path(out_png), xyz=Path(out_xyz) if out_xyz else None, diffuse=mode,
                      bake=bake, bake_note=bake_note, exposure=cfg.exposure.mode,
                      white_fraction=cfg.exposure.white_fraction, dither=cfg.dither, camera=camera,
-                     notes=notes)
+                     notes=notes, adaptation=adaptation or cfg.adaptation)

@@ -383,11 +383,22 @@ class SceneBuilder:
         ``'relative_white'``: a perfect white diffuser at the sample is shown at
         ``white_fraction`` of the display's white luminance; ``'absolute'``: XYZ in
         cd/m² as they are.
+    adaptation
+        ``'cat16'`` (default): colours are taken from the white of the lighting at the sample
+        to the display's white (what a person in the booth sees); ``'none'``: shown as they are
+        (what a camera with a D65 white balance sees).  See
+        :mod:`lbscene.engine.colour.adaptation`.
     """
 
     def __init__(self, ir, graph: dict, sample: SampleSpec, display, *, bake=None,
                  diffuse: str = "analytic", exposure: str = "relative_white",
-                 white_fraction: float = 1.0, dither: bool = True, camera: CameraSpec | None = None):
+                 white_fraction: float = 1.0, dither: bool = True, camera: CameraSpec | None = None,
+                 adaptation: str = "cat16"):
+        from lbscene.engine.colour.adaptation import ADAPTATION_METHODS
+
+        if adaptation not in ADAPTATION_METHODS:
+            raise ValueError(f"adaptation must be one of {ADAPTATION_METHODS}")
+        self.adaptation = adaptation
         if diffuse == "baked" and bake is None:
             raise ValueError("diffuse='baked' needs bake products")
         self.ir = ir
@@ -609,8 +620,14 @@ class SceneBuilder:
         # exposure and display
         from lbscene.engine.spectra import cmfs_1nm
 
-        y_white = 683.0 / np.pi * float(e_1nm @ cmfs_1nm()[:, 1])
+        # a perfect white diffuser at the sample: XYZ (cd/m²) of the lighting's white
+        white_xyz = 683.0 / np.pi * (e_1nm @ cmfs_1nm())
+        y_white = float(white_xyz[1])
         d = self.display
+        from lbscene.engine.colour.adaptation import adaptation_matrix
+
+        adapt = (adaptation_matrix(white_xyz, d.adapted_white_xyz, self.adaptation)
+                 if y_white > 0 else np.eye(3))
         if self.exposure == "absolute":
             k = 1.0
         else:
@@ -628,6 +645,7 @@ class SceneBuilder:
             "sample.f0": float(COAT_F0),
             "ltc.size": int(self.static_textures()["ltc_minv"].shape[0]),
             "display.exposure": float(k),
+            "display.adaptation": _gl(adapt),
             "display.xyz_offset": np.asarray(d.xyz_offset, np.float32),
             "display.xyz_to_rgb": _gl(d.xyz_to_rgb),
             "display.tone_kind": int(d.tone_kind),
@@ -641,7 +659,12 @@ class SceneBuilder:
         info.update({"realised": vs["realised"], "geometry": vs["geometry"],
                      "platform_rotation_deg": vs["platform_rotation_deg"],
                      "sample_illuminance_lx": float(683.0 * e_1nm @ cmfs_1nm()[:, 1]),
-                     "white_Y_cd_m2": y_white, "exposure": k})
+                     "white_Y_cd_m2": y_white, "exposure": k,
+                     "adaptation": {"method": self.adaptation,
+                                    "white_xy": ([float(v) for v in white_xyz[:2] / white_xyz.sum()]
+                                                 if y_white > 0 else None),
+                                    "display_white_xy": [float(v) for v in d.adapted_white_xyz[:2]
+                                                         / d.adapted_white_xyz.sum()]}})
         return ViewInputs(name=name, meshes=packed, textures={"emitters": et, "sample_reflectance": st},
                           values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
                           sample_normal=n_world[0], info=info)

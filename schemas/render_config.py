@@ -37,8 +37,8 @@ class Exposure(StrictModel):
     mode: Literal["relative_white", "absolute"] = Field(
         "relative_white",
         description="relative_white: a perfect white diffuser at the sample is shown at `white_fraction` "
-                    "of the display's white luminance (chromaticities unchanged, no adaptation); "
-                    "absolute: XYZ in cd/m² as they are (clipped to the display's gamut).")
+                    "of the display's white luminance; absolute: XYZ in cd/m² as they are (mapped into "
+                    "the display's gamut). Chromatic adaptation is set apart, by `adaptation`.")
     white_fraction: float = Field(1.0, gt=0, le=10, description="See `mode`.")
 
 
@@ -58,6 +58,12 @@ class RenderConfig(Document):
         "auto", description="Diffuse light: 'baked' needs bake products (an error names the bake to run), "
                             "'analytic' uses the forward model, 'auto' the bake when there is one.")
     exposure: Exposure = Exposure()
+    adaptation: Literal["cat16", "none"] = Field(
+        "cat16",
+        description="Chromatic adaptation. cat16: colours are taken from the white of the lighting at the "
+                    "sample to the display's white with CAT16 (von Kries, full adaptation): what a person "
+                    "in the booth sees (a grey under illuminant A looks grey). none: shown as they are: "
+                    "what a camera with a D65 white balance sees (a grey under A looks orange).")
     dither: bool = Field(True, description="Blue-noise dithering before 8-bit quantisation.")
     camera: Camera = Camera()
     output: RenderOutput = RenderOutput()

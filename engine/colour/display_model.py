@@ -303,8 +303,19 @@ class DisplayModel:
         s = np.clip(np.minimum(hi, lo).min(axis=-1, keepdims=True), 0.0, 1.0)
         return np.clip(g + s * diff, 0.0, 1.0)
 
+    def adaptation_matrix(self, white_source_xyz, method: str = "cat16") -> np.ndarray:
+        """3×3 chromatic adaptation from a scene white to this display's white as seen.
+
+        ``XYZ_shown = A @ XYZ_scene`` (luminance kept); see :mod:`lbscene.engine.colour.adaptation`.
+        ``method``: ``"cat16"`` (what a person adapted to the scene sees) or ``"none"`` (identity:
+        what a camera sees).
+        """
+        from .adaptation import adaptation_matrix
+
+        return adaptation_matrix(white_source_xyz, self.xyz_white_seen, method)
+
     def xyz_to_drive(self, xyz_abs, *, mapping: str | None = None, report: bool = False,
-                     white_xyz=None):
+                     white_xyz=None, adapt_from_white_xyz=None, adaptation: str = "cat16"):
         """Drive values (..., 3) in [0, 1] that reproduce absolute XYZ (cd/m²) as seen.
 
         Parameters
@@ -317,8 +328,15 @@ class DisplayModel:
             Also return a :class:`GamutReport`.
         white_xyz
             Reference white for the report's ΔE00 (default :attr:`xyz_white_seen`).
+        adapt_from_white_xyz
+            White of the scene the targets were seen in (e.g. a perfect white diffuser under
+            the booth's lighting).  When given, the targets are first taken to their corresponding
+            colours under the display's white with :meth:`adaptation_matrix` (``adaptation``:
+            ``"cat16"`` or ``"none"``).
         """
         xyz = np.asarray(xyz_abs, float)
+        if adapt_from_white_xyz is not None:
+            xyz = xyz @ self.adaptation_matrix(adapt_from_white_xyz, adaptation).T
         rgb = self.xyz_to_linear(xyz)
         y_rel = xyz[..., 1] - self.xyz_floor[1]
         mapping = mapping or self.mapping

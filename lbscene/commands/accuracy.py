@@ -18,11 +18,13 @@ class Mapping(str, Enum):
 
 
 def _repo_dir(name: str) -> Path:
-    """``./<name>`` when it exists, else the folder of that name next to the lbscene package."""
+    """``./<name>`` when it exists, else the shipped folder of that name (checkout or wheel)."""
+    from lbscene.engine.shipped import data_dir
+
     here = Path.cwd() / name
     if here.is_dir():
         return here
-    return Path(__file__).resolve().parents[2] / name
+    return data_dir(name) or here
 
 
 def default_booths() -> list[Path]:

@@ -21,6 +21,11 @@ class Diffuse(str, Enum):
     analytic = "analytic"
 
 
+class Adaptation(str, Enum):
+    cat16 = "cat16"
+    none = "none"
+
+
 def _usage_error(message: str, value: str, expected: str):
     from lbscene.engine.diagnostics import LbsceneUserError
 
@@ -58,6 +63,10 @@ def register(app: typer.Typer) -> None:
         xyz: Optional[Path] = typer.Option(None, "--xyz", help="Also write the float XYZ image (.npy or .exr)."),
         diffuse: Optional[Diffuse] = typer.Option(None, "--diffuse",
                                                   help="Override the config: auto, baked or analytic."),
+        adaptation: Optional[Adaptation] = typer.Option(
+            None, "--adaptation",
+            help="Override the config: cat16 (default: adapted to the lighting's white, what a person in "
+                 "the booth sees) or none (what a camera sees: under A or TL84 the image looks warm)."),
         bake: bool = typer.Option(False, "--bake", help="Run a missing bake (build + bake) before rendering."),
         no_input: bool = typer.Option(False, "--no-input", help="Never ask questions (CI)."),
         egl_device: Optional[int] = typer.Option(None, "--egl-device", help="EGL device index (GPU choice)."),
@@ -73,6 +82,7 @@ def register(app: typer.Typer) -> None:
             TimeElapsedColumn,
         )
 
+        from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
         from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.load import display_path
         from lbscene.runtimes.render import (
@@ -102,7 +112,8 @@ def register(app: typer.Typer) -> None:
         def prepare():
             return prepare_from_config(config, geometry=geometry, all_geometries=all_geometries, size=wh,
                                        png=out, xyz=xyz, diffuse=diffuse.value if diffuse else None,
-                                       allowed_dirs=tuple(allow_path or ()))
+                                       allowed_dirs=tuple(allow_path or ()),
+                                       adaptation=adaptation.value if adaptation else None)
 
         t_start = time.perf_counter()
         try:
@@ -171,7 +182,8 @@ def register(app: typer.Typer) -> None:
 
         meta = {"lbscene:booth": job.ir.booth_name, "lbscene:ir_hash": job.ir.content_hash[:16],
                 "lbscene:lighting": job.graph["lighting"], "lbscene:sample": job.sample.name,
-                "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames)}
+                "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames),
+                "lbscene:adaptation": f"{job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}"}
         if all_geometries:
             # one labelled tile per view, even for a booth with one geometry (same layout always)
             write_png(job.png, contact_sheet(frames, columns=min(3, len(frames))), meta)
@@ -191,6 +203,9 @@ def register(app: typer.Typer) -> None:
             "config": str(config), "png": str(job.png), "xyz": xyz_files, "size": list(job.size),
             "booth": job.ir.booth_name, "lighting": job.graph["lighting"], "sample": job.sample.name,
             "display": job.display.name, "diffuse": job.diffuse, "bake": job.bake_note or None,
+            "adaptation": {"method": job.adaptation, "description": ADAPTATION_DESCRIPTIONS[job.adaptation],
+                           "lighting_white_xy": frames[0].info.get("adaptation", {}).get("white_xy"),
+                           "display_white_xy": frames[0].info.get("adaptation", {}).get("display_white_xy")},
             "gl_renderer": gl_name, "elapsed_s": round(elapsed, 3), "notes": job.notes,
             # where the time goes: loading/compiling the booth, the forward model at the vertices
             # (per view), and the frame (uploads, first-use shader compilation, passes, read-back)
@@ -228,3 +243,4 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"wrote {display_path(job.png)}" + (f" and {', '.join(xyz_files)}" if xyz_files else "")
                    + f"  ({job.size[0]}x{job.size[1]}, {job.diffuse} diffuse light, display "
                      f"{job.display.name}, {gl_name}, {elapsed:.1f} s)")
+        typer.echo(f"adaptation: {job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}")

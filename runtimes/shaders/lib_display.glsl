@@ -1,5 +1,7 @@
 // lbscene shader library (a GLSL ES 3.00 chunk without #version): the display model.
-//   display XYZ  = exposure · XYZ                      (cd·m⁻²)
+//   display XYZ  = exposure · A · XYZ                  (cd·m⁻²); A: chromatic adaptation from the
+//                                                      lighting's white to the display's (CAT16, or
+//                                                      the identity: lbscene.engine.colour.adaptation)
 //   linear RGB   = M · (display XYZ − offset)          offset: black level + reflected ambient
 //   drive        = tone⁻¹(linear RGB)                  sRGB piecewise, GOG or a LUT
 // Out of gamut (a linear channel outside 0..1): GAMUT_MAPPING 1 (default) moves the colour
@@ -18,6 +20,7 @@ precision highp sampler2D;
 #endif
 
 uniform float u_exposure;
+uniform mat3 u_adaptation;          // XYZ under the lighting → corresponding XYZ under the display white
 uniform vec3 u_xyz_offset;
 uniform mat3 u_xyz_to_rgb;
 uniform vec4 u_tone_params[3];      // GOG per channel: (gain, offset, gamma, 0): L = (gain·d + offset)^gamma
@@ -45,7 +48,7 @@ float lut_inverse(float l, int channel) {
 
 // Absolute XYZ (Y in cd·m⁻²) → (drive values 0..1, out-of-gamut excess ≥ 0).
 vec4 display_drive(vec3 xyz_abs) {
-    vec3 xyz = xyz_abs * u_exposure;
+    vec3 xyz = (u_adaptation * xyz_abs) * u_exposure;
     vec3 lin = u_xyz_to_rgb * (xyz - u_xyz_offset);
     float excess = max(max(max(-lin.r, -lin.g), -lin.b), max(max(lin.r, lin.g), lin.b) - 1.0);
 #if GAMUT_MAPPING == 1

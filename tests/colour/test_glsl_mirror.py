@@ -55,6 +55,7 @@ def _run(ctx, model, xyz):
     lut_tex.use(1)
     values = {"u_xyz": 0, "u_tone_lut": 1, "u_xyz_to_rgb": tuple(u["xyz_to_rgb_column_major"]),
               "u_xyz_offset": tuple(u["xyz_offset"]), "u_exposure": 1.0,
+              "u_adaptation": (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),   # adaptation: identity
               "u_tone_params": [tuple(p) for p in u["tone_params"]],
               "u_tone_lut_size": max(u["tone_lut_size"], 2), "u_inv_y_span": u["inv_y_span"]}
     for k, v in values.items():
