@@ -4,7 +4,36 @@ lbscene: a declarative, spectral scene engine for colour-viewing light booths.
 Subpackages map onto the repository's top-level folders:
 ``lbscene.schemas`` (schemas/), ``lbscene.engine`` (engine/),
 ``lbscene.bakers`` (bakers/), ``lbscene.runtimes`` (runtimes/).
+
+The stable Python API (:mod:`lbscene.api`) is exported here: ``load_booth``,
+``compile_booth``, ``ForwardModel``, ``validate``, ``build``, ``compare``, ``plan``,
+``render_from_config``, and the error type ``LbsceneUserError``.
 """
 
-__all__ = ["__version__"]
+__all__ = [
+    "__version__",
+    "load_booth",
+    "compile_booth",
+    "ForwardModel",
+    "validate",
+    "build",
+    "compare",
+    "plan",
+    "render_from_config",
+    "LbsceneUserError",
+    "Diagnostic",
+]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    # the API is imported on first use: `import lbscene` and `lbscene --help` stay light
+    if name in __all__ and name != "__version__":
+        from lbscene import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'lbscene' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -25,6 +25,9 @@ from .executor import GraphExecutor, PassTiming, create_context
 from .scene import CameraSpec, SampleSpec, SceneBuilder
 
 __all__ = [
+    "RenderResult",
+    "render_job",
+    "render_from_config",
     "xyz_view_path",
     "Frame",
     "Renderer",
@@ -384,3 +387,144 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                      bake=bake, bake_note=bake_note, exposure=cfg.exposure.mode,
                      white_fraction=cfg.exposure.white_fraction, dither=cfg.dither, camera=camera,
                      notes=notes, adaptation=adaptation or cfg.adaptation)
+
+
+# --------------------------------------------------------------------------- one call: config → files
+
+
+@dataclass
+class RenderResult:
+    """What :func:`render_job` made: the frames, the files written, and how long each part took."""
+
+    job: RenderJob
+    frames: list[Frame]
+    png: Path
+    xyz_files: list[Path]
+    contact_sheet: bool
+    gl_renderer: str
+    timing_s: dict
+    elapsed_s: float
+
+    def to_json(self) -> dict:
+        """The summary ``lbscene render --format json`` prints."""
+        from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
+
+        from .colour_bridge import colour_module_features
+
+        job, frames = self.job, self.frames
+        ad = frames[0].info.get("adaptation", {}) if frames else {}
+        return {
+            "config": str(job.config_path), "png": str(self.png), "xyz": [str(p) for p in self.xyz_files],
+            "size": list(job.size), "booth": job.ir.booth_name, "lighting": job.graph["lighting"],
+            "sample": job.sample.name, "display": job.display.name, "diffuse": job.diffuse,
+            "bake": job.bake_note or None,
+            "adaptation": {"method": job.adaptation, "description": ADAPTATION_DESCRIPTIONS[job.adaptation],
+                           "lighting_white_xy": ad.get("white_xy"), "display_white_xy": ad.get("display_white_xy")},
+            "gl_renderer": self.gl_renderer, "elapsed_s": round(self.elapsed_s, 3), "notes": job.notes,
+            # where the time goes: loading/compiling the booth, the forward model at the vertices
+            # (per view), and the frame (uploads, first-use shader compilation, passes, read-back)
+            "timing_s": self.timing_s,
+            "contact_sheet": ({"views": len(frames), "columns": min(3, len(frames)), "tile_px": list(job.size)}
+                              if self.contact_sheet else None),
+            "colour_module": colour_module_features(),
+            "views": [{"view": f.view, "realised": f.info.get("realised"),
+                       "platform_rotation_deg": f.info.get("platform_rotation_deg"),
+                       "sample_illuminance_lx": round(f.info.get("sample_illuminance_lx", 0.0), 3),
+                       "out_of_gamut": f.out_of_gamut} for f in frames],
+        }
+
+
+def render_job(job: RenderJob, *, contact: bool = False, egl_device: int | None = None,
+               progress=None, prepared_s: float = 0.0) -> RenderResult:
+    """Render every view of ``job`` and write its PNG (and XYZ files).
+
+    ``contact``: one labelled contact sheet of all views (else the first view's frame).
+    ``progress(description, advance)`` is called before each step (``advance`` after a view).
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB600`` without an OpenGL context, ``LB500`` for a size over the GL limit.
+    """
+    import time
+
+    from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
+    from lbscene.engine.diagnostics import LbsceneUserError
+
+    from .executor import GLUnavailableError
+
+    say = progress or (lambda description, advance=False: None)
+    t_start = time.perf_counter()
+    scene_s: dict[str, float] = {}
+    frame_s: dict[str, float] = {}
+    frames: list[Frame] = []
+    say("render: GL context")
+    try:
+        renderer = job.renderer(device_index=egl_device)
+    except GLUnavailableError as exc:
+        raise LbsceneUserError.single(
+            "LB600", str(exc), expected="an OpenGL 3.3 context through EGL",
+            hint="install Mesa's EGL (libegl1, libgl1-mesa-dri) or pick a device with --egl-device")
+    try:
+        for v in job.views:
+            say(f"render: {v}: light at the vertices (forward model)")
+            t0 = time.perf_counter()
+            renderer.scene.view(v)
+            scene_s[v] = time.perf_counter() - t0
+            say(f"render: {v}: {job.size[0]}x{job.size[1]}")
+            t0 = time.perf_counter()
+            try:
+                frames.append(renderer.render(v, job.size, want_xyz=job.xyz is not None, want_gamut=True))
+            except ValueError as exc:   # a viewport over the GL limit
+                raise LbsceneUserError.single(
+                    "LB500", f"--size: {exc}", value=f"{job.size[0]}x{job.size[1]}",
+                    expected="a size this OpenGL implementation can render") from None
+            frame_s[v] = time.perf_counter() - t0
+            say(f"render: {v}: done", True)
+        gl_name = renderer.gl_renderer
+    finally:
+        renderer.close()
+    meta = {"lbscene:booth": job.ir.booth_name, "lbscene:ir_hash": job.ir.content_hash[:16],
+            "lbscene:lighting": job.graph["lighting"], "lbscene:sample": job.sample.name,
+            "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames),
+            "lbscene:adaptation": f"{job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}"}
+    # a contact sheet has one labelled tile per view, even for a booth with one geometry
+    write_png(job.png, contact_sheet(frames, columns=min(3, len(frames))) if contact else frames[0].rgba8, meta)
+    xyz_files = []
+    if job.xyz is not None:
+        for f in frames:
+            p = job.xyz if not contact else xyz_view_path(job.xyz, f.view)
+            write_xyz(p, f.xyz)
+            xyz_files.append(Path(p))
+    timing = {"config_and_booth": round(prepared_s, 3),
+              "scene_per_view": {v: round(x, 3) for v, x in scene_s.items()},
+              "frame_per_view": {v: round(x, 3) for v, x in frame_s.items()}}
+    return RenderResult(job, frames, Path(job.png), xyz_files, contact, gl_name, timing,
+                        prepared_s + time.perf_counter() - t_start)
+
+
+def render_from_config(config: Path | str, *, out: Path | str | None = None, xyz: Path | str | None = None,
+                       geometry: str | None = None, all_geometries: bool = False,
+                       size: tuple[int, int] | None = None, diffuse: str | None = None,
+                       adaptation: str | None = None, allowed_dirs=(), egl_device: int | None = None,
+                       progress=None) -> RenderResult:
+    """Render a configuration (``kind: render_config``) to its PNG: the whole ``lbscene render``.
+
+    Parameters override the configuration as the command's options do (``out`` is ``-o``).
+
+    Examples
+    --------
+    >>> from lbscene import render_from_config                                   # doctest: +SKIP
+    >>> r = render_from_config("examples/render/splqc-d65-moderate-red.yaml",    # doctest: +SKIP
+    ...                        out="red.png", size=(320, 240))
+    >>> r.png, r.frames[0].info["sample_illuminance_lx"]                        # doctest: +SKIP
+    """
+    import time
+
+    t0 = time.perf_counter()
+    job = prepare_from_config(Path(config), geometry=geometry, all_geometries=all_geometries, size=size,
+                              png=Path(out) if out is not None else None,
+                              xyz=Path(xyz) if xyz is not None else None, diffuse=diffuse,
+                              allowed_dirs=tuple(allowed_dirs), adaptation=adaptation)
+    return render_job(job, contact=all_geometries, egl_device=egl_device, progress=progress,
+                      prepared_s=time.perf_counter() - t0)

@@ -85,14 +85,7 @@ def register(app: typer.Typer) -> None:
         from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
         from lbscene.engine.diagnostics import LbsceneUserError
         from lbscene.engine.load import display_path
-        from lbscene.runtimes.render import (
-            contact_sheet,
-            parse_size,
-            prepare_from_config,
-            write_png,
-            write_xyz,
-            xyz_view_path,
-        )
+        from lbscene.runtimes.render import parse_size, prepare_from_config, render_job
 
         from lbscene.commands.console import err_console, out_console, progress
 
@@ -141,85 +134,24 @@ def register(app: typer.Typer) -> None:
             _run_bake({"booth": str(booth), "lighting": raw["lighting"]}, console)
             job = prepare()
 
-        from lbscene.runtimes.executor import GLUnavailableError
-
-        t_prepared = time.perf_counter()
-        scene_s: dict[str, float] = {}
-        frame_s: dict[str, float] = {}
-        frames = []
         columns = [SpinnerColumn(), TextColumn("{task.description}")]
         if len(job.views) > 1:
             columns.append(BarColumn())
             columns.append(MofNCompleteColumn())
         with progress(*columns, TimeElapsedColumn(), console=console, transient=True,
                       disable=format is Format.json) as prog:
-            task = prog.add_task("render: GL context", total=len(job.views))
-            try:
-                renderer = job.renderer(device_index=egl_device)
-            except GLUnavailableError as exc:
-                raise LbsceneUserError.single(
-                    "LB600", str(exc), expected="an OpenGL 3.3 context through EGL",
-                    hint="install Mesa's EGL (libegl1, libgl1-mesa-dri) or pick a device with --egl-device")
-            try:
-                for v in job.views:
-                    prog.update(task, description=f"render: {v}: light at the vertices (forward model)")
-                    t0 = time.perf_counter()
-                    renderer.scene.view(v)
-                    scene_s[v] = time.perf_counter() - t0
-                    prog.update(task, description=f"render: {v}: {job.size[0]}x{job.size[1]}")
-                    t0 = time.perf_counter()
-                    try:
-                        frames.append(renderer.render(v, job.size, want_xyz=job.xyz is not None,
-                                                      want_gamut=True))
-                    except ValueError as exc:   # a viewport over the GL limit
-                        raise _usage_error(f"--size: {exc}", f"{job.size[0]}x{job.size[1]}",
-                                           "a size this OpenGL implementation can render")
-                    frame_s[v] = time.perf_counter() - t0
+            task = prog.add_task("render", total=len(job.views))
+
+            def step(description: str, advance: bool = False) -> None:
+                prog.update(task, description=description)
+                if advance:
                     prog.advance(task)
-                gl_name = renderer.gl_renderer
-            finally:
-                renderer.close()
 
-        meta = {"lbscene:booth": job.ir.booth_name, "lbscene:ir_hash": job.ir.content_hash[:16],
-                "lbscene:lighting": job.graph["lighting"], "lbscene:sample": job.sample.name,
-                "lbscene:display": job.display.name, "lbscene:views": ",".join(f.view for f in frames),
-                "lbscene:adaptation": f"{job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}"}
-        if all_geometries:
-            # one labelled tile per view, even for a booth with one geometry (same layout always)
-            write_png(job.png, contact_sheet(frames, columns=min(3, len(frames))), meta)
-        else:
-            write_png(job.png, frames[0].rgba8, meta)
-        xyz_files = []
-        if job.xyz is not None:
-            for f in frames:
-                p = job.xyz if not all_geometries else xyz_view_path(job.xyz, f.view)
-                write_xyz(p, f.xyz)
-                xyz_files.append(str(p))
-        elapsed = time.perf_counter() - t_start
-
-        from lbscene.runtimes.colour_bridge import colour_module_features
-
-        result = {
-            "config": str(config), "png": str(job.png), "xyz": xyz_files, "size": list(job.size),
-            "booth": job.ir.booth_name, "lighting": job.graph["lighting"], "sample": job.sample.name,
-            "display": job.display.name, "diffuse": job.diffuse, "bake": job.bake_note or None,
-            "adaptation": {"method": job.adaptation, "description": ADAPTATION_DESCRIPTIONS[job.adaptation],
-                           "lighting_white_xy": frames[0].info.get("adaptation", {}).get("white_xy"),
-                           "display_white_xy": frames[0].info.get("adaptation", {}).get("display_white_xy")},
-            "gl_renderer": gl_name, "elapsed_s": round(elapsed, 3), "notes": job.notes,
-            # where the time goes: loading/compiling the booth, the forward model at the vertices
-            # (per view), and the frame (uploads, first-use shader compilation, passes, read-back)
-            "timing_s": {"config_and_booth": round(t_prepared - t_start, 3),
-                         "scene_per_view": {v: round(x, 3) for v, x in scene_s.items()},
-                         "frame_per_view": {v: round(x, 3) for v, x in frame_s.items()}},
-            "contact_sheet": ({"views": len(frames), "columns": min(3, len(frames)),
-                               "tile_px": list(job.size)} if all_geometries else None),
-            "colour_module": colour_module_features(),
-            "views": [{"view": f.view, "realised": f.info.get("realised"),
-                       "platform_rotation_deg": f.info.get("platform_rotation_deg"),
-                       "sample_illuminance_lx": round(f.info.get("sample_illuminance_lx", 0.0), 3),
-                       "out_of_gamut": f.out_of_gamut} for f in frames],
-        }
+            res = render_job(job, contact=all_geometries, egl_device=egl_device, progress=step,
+                             prepared_s=time.perf_counter() - t_start)
+        result = res.to_json()
+        frames, gl_name, elapsed = res.frames, res.gl_renderer, res.elapsed_s
+        xyz_files = [str(p) for p in res.xyz_files]
         if format is Format.json:
             typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
             return
