@@ -6,10 +6,17 @@ variable that raises (or lowers) it.  A file that asks for more is refused with
 ``LB510``, naming the limit, the amount asked for, and the variable; the process
 never discovers the problem by running out of memory.
 
-Measured peak memory of ``lbscene compare`` (X-Rite SpectraLight QC, every effect
-on, diagnosis included): about 0.6 GB plus about 1 MB per illuminance reading
-(``benchmarks/bench_limits.py``); with the default bounds a run stays under
-about 2 GB.
+Measured peak memory of ``lbscene compare`` (fit and diagnosis, every effect the booth
+enables; ``benchmarks/bench_limits.py``):
+
+============================  ==========  ===========  ==============
+booth                         55 readings  1000 readings  per reading
+============================  ==========  ===========  ==============
+X-Rite SpectraLight QC        0.56 GB     1.46 GB      ≈ 0.9 MB
+BYK byko-spectra effect       0.81 GB     3.58 GB      ≈ 2.9 MB
+============================  ==========  ===========  ==============
+
+so with the default bounds a compare stays under about 4 GB.
 
 Examples
 --------
