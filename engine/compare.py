@@ -54,7 +54,9 @@ class CompareResult:
                 if self.outliers_excluded else f"fit and verdict computed with {what} included")
 
     @property
-    def verdict(self) -> str:
+    def verdict(self):
+        """The diagnosis' :class:`~lbscene.engine.diagnose.Verdict` (compares equal to its short
+        form, e.g. ``"missing:diffuser"``), or ``"not diagnosed"``."""
         return self.diagnosis.verdict if self.diagnosis else "not diagnosed"
 
     def residual_rows(self) -> list[dict]:
@@ -101,7 +103,7 @@ class CompareResult:
             "residuals": self.residual_rows(),
             "spectral": ({"rmse_percent": _r(f.spectral_rmse_percent), "bands": self.spectral_rows()}
                          if f.tile_bands_pred is not None else None),
-            "verdict": self.verdict,
+            "verdict": str(self.verdict),
             "suspects": [{"effect": s.effect, "rmse_percent_after": _r(s.rmse_percent_after),
                           "score": _r(s.score, 3)} for s in (d.suspects if d else [])],
             "diagnosis": d.to_json() if d else None,
@@ -125,11 +127,12 @@ def plan_for(result: CompareResult, max_points: int | None = None):
     if d is None or result.meas.illuminance is None:
         return None
     fits = {}
-    if len(d.tied) > 1:
-        fits = {s.effect: s.fit for s in d.suspects if s.effect in d.tied}
+    by_name = {s.effects: s for s in d.suspects + d.pairs}
+    if d.verdict.kind == "ambiguous":
+        fits = {"+".join(a): by_name[a].fit for a in d.verdict.alternatives if a in by_name}
     else:
         top = [s for s in d.suspects if s.fit is not None][:2]
-        if d.verdict in ("none", "unexplained") or len(top) < 2:
+        if d.verdict.kind in ("none", "unexplained") or len(top) < 2:
             fits["(booth as is)"] = d.base
             top = top[:1]
         for s in top:
@@ -202,7 +205,7 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
         res.diagnosis = diagnose(meas, prob, progress=progress, cache=cache)
         t["diagnose"] = time.perf_counter() - t2
         if do_plan is None:
-            do_plan = res.diagnosis.verdict.startswith("ambiguous")
+            do_plan = res.diagnosis.verdict.kind == "ambiguous"
         if do_plan:
             t3 = time.perf_counter()
             res.plan = plan_for(res)
@@ -217,7 +220,7 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
             "max_percent": _r(f.max_percent), "spectral_rmse_percent": _r(f.spectral_rmse_percent),
             "noise_percent_estimate": _r(noise.estimate_percent if noise.estimate_percent is not None
                                          else noise.percent),
-            "verdict": res.verdict,
+            "verdict": str(res.verdict),
             "n_points": len(meas.illuminance) if meas.illuminance is not None else 0,
             "outliers": len(outliers), "outliers_excluded": res.outliers_excluded,
         }

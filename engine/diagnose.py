@@ -40,12 +40,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from itertools import combinations
+from typing import Literal
 
 import numpy as np
 
 from .fit import FitProblem, FitResult, effect_parameter
 
-__all__ = ["Suspect", "Diagnosis", "diagnose", "consistent_with_noise", "effects_snippet",
+__all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
            "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
            "noise_model"]
 
@@ -53,6 +55,10 @@ __all__ = ["Suspect", "Diagnosis", "diagnose", "consistent_with_noise", "effects
 SIGNIFICANT = 10.0
 #: Suspects within this many BIC units of the best are tied.
 TIE_MARGIN = 10.0
+#: When no single effect reaches the noise, pairs of the best this-many suspects are refitted together.
+PAIR_CANDIDATES = 4
+#: Resamples of the linearised parametric bootstrap behind a verdict's recurrence.
+BOOTSTRAP_SAMPLES = 2000
 #: χ²/dof consistency with noise: within this many standard deviations of 1.
 NOISE_Z = 3.0
 #: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
@@ -63,13 +69,25 @@ SCORING_TOLERANCE = 1e-4
 
 @dataclass
 class NoiseModel:
-    """The noise the fit uses and where it came from."""
+    """The noise the fit uses and where it came from.
+
+    ``percent`` is the total σ of one reading: the meter's ``meter_percent`` and the declared
+    model uncertainty ``model_percent`` added in quadrature, σ² = σ_meter² + σ_model².
+    """
 
     percent: float
     estimate_percent: float | None
     declared_percent: float | None
     spectral_percent: float
     source: str
+    meter_percent: float = 0.0
+    model_percent: float = 0.0
+
+    def model_share(self, rmse_percent: float) -> float | None:
+        """Fraction of the residual's variance the declared model uncertainty covers (0–1)."""
+        if not self.model_percent or rmse_percent <= 0:
+            return None
+        return min(1.0, self.model_percent ** 2 / rmse_percent ** 2)
 
 
 def noise_model(meas) -> NoiseModel:
@@ -84,7 +102,12 @@ def noise_model(meas) -> NoiseModel:
         pct, src = max(est, 0.2), "estimated from the data (smooth-surface residual)"
     else:
         pct, src = DEFAULT_NOISE_PERCENT, "default (too few points to estimate)"
-    return NoiseModel(pct, est, dec, meas.spectral_noise_percent or DEFAULT_SPECTRAL_NOISE_PERCENT, src)
+    u = float(getattr(meas, "model_uncertainty_percent", 0.0) or 0.0)
+    total = math.hypot(pct, u)
+    if u:
+        src += f" ⊕ declared model uncertainty {u:g} %"
+    return NoiseModel(total, est, dec, meas.spectral_noise_percent or DEFAULT_SPECTRAL_NOISE_PERCENT, src,
+                      meter_percent=pct, model_percent=u)
 
 
 def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: float | None = None,
@@ -148,9 +171,18 @@ class Suspect:
     params: dict
     fit: FitResult | None = None
     spectral_rmse_after: float | None = None
+    #: the effects this explanation adds (one, or two for a pair) and their fitted parameters
+    effects: tuple[str, ...] = ()
+    params_by_effect: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.effects:
+            self.effects = tuple(self.effect.split("+"))
+        if not self.params_by_effect and len(self.effects) == 1:
+            self.params_by_effect = {self.effects[0]: dict(self.params)}
 
     def to_json(self) -> dict:
-        return {"effect": self.effect, "rmse_percent_after": round(self.rmse_percent_after, 4),
+        return {"effect": self.effect, "effects": list(self.effects), "rmse_percent_after": round(self.rmse_percent_after, 4),
                 "score": round(self.score, 3), "chi2": round(self.chi2, 3), "n_params": self.n_params,
                 "explains_to_noise": self.explains, "structure_after": _r(self.structure_after),
                 "spectral_rmse_percent_after": _r(self.spectral_rmse_after),
@@ -163,9 +195,84 @@ def _r(x, nd=4):
     return round(float(x), nd)
 
 
+VerdictKind = Literal["none", "missing", "ambiguous", "unexplained"]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the diagnosis concludes, as a value (not a string to parse).
+
+    ``kind``
+        ``none``: the residual is at the noise and nothing improves it significantly;
+        ``missing``: adding ``effects`` (one, or two together) brings the residual to the noise
+        and beats every other explanation by :data:`TIE_MARGIN` BIC units;
+        ``ambiguous``: several explanations (``alternatives``, each a tuple of effects) reach
+        the noise within :data:`TIE_MARGIN` of each other;
+        ``unexplained``: no single effect nor pair reaches the noise; ``partial`` is the best
+        partial explanation, if one helps significantly.
+
+    ``str(verdict)`` is the short form the command line prints and the JSON carries:
+    ``none``, ``missing:a``, ``missing:a+b``, ``ambiguous:a,b+c``, ``unexplained``.
+    """
+
+    kind: VerdictKind
+    effects: tuple[str, ...] = ()
+    alternatives: tuple[tuple[str, ...], ...] = ()
+    partial: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        if self.kind == "missing":
+            return "missing:" + "+".join(self.effects)
+        if self.kind == "ambiguous":
+            return "ambiguous:" + ",".join("+".join(a) for a in self.alternatives)
+        return self.kind
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, str):
+            return str(self) == other
+        if isinstance(other, Verdict):
+            return (self.kind, self.effects, self.alternatives, self.partial) == \
+                (other.kind, other.effects, other.alternatives, other.partial)
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(str(self))
+
+    @property
+    def tied(self) -> list[str]:
+        """Effects named by an ambiguous verdict (each alternative's effects, in order)."""
+        return [e for a in self.alternatives for e in a]
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "effects": list(self.effects),
+                "alternatives": [list(a) for a in self.alternatives], "partial": list(self.partial),
+                "text": str(self)}
+
+
+@dataclass
+class Confidence:
+    """How firmly the data support the verdict.
+
+    ``delta_bic_vs_base``: BIC units the verdict's explanation gains over the booth as it is;
+    ``delta_bic_vs_next``: its lead over the next explanation; ``recurrence``: the fraction of
+    data sets, resampled from the verdict's own model with the measured noise, on which the
+    same verdict comes back (linearised parametric bootstrap: each explanation's predictions
+    held at its fit, :data:`BOOTSTRAP_SAMPLES` resamples).
+    """
+
+    delta_bic_vs_base: float | None
+    delta_bic_vs_next: float | None
+    recurrence: float | None
+    samples: int = 0
+
+    def to_json(self) -> dict:
+        return {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
+                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples}
+
+
 @dataclass
 class Diagnosis:
-    verdict: str
+    verdict: Verdict
     base: FitResult
     suspects: list[Suspect]
     skipped: dict[str, str]
@@ -180,9 +287,15 @@ class Diagnosis:
     #: values because these data cannot pin them (see _pinned_by_data)
     refitted: list[str] = field(default_factory=list)
     held: list[str] = field(default_factory=list)
+    #: refits with two effects together (when no single one reaches the noise)
+    pairs: list[Suspect] = field(default_factory=list)
+    confidence: Confidence | None = None
 
     def to_json(self) -> dict:
-        return {"verdict": self.verdict,
+        return {"verdict": str(self.verdict),
+                "verdict_detail": self.verdict.to_json(),
+                "confidence": self.confidence.to_json() if self.confidence else None,
+                "pairs": [p.to_json() for p in self.pairs],
                 "suspects": [s.to_json() for s in self.suspects],
                 "not_tested": self.skipped,
                 "tied": self.tied,
@@ -210,19 +323,20 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def effects_snippet(effects: dict, highlight: str | None = None) -> str:
+def effects_snippet(effects: dict, highlight: str | set | None = None) -> str:
     """The ``effects:`` block to paste into the booth file (non-default parameters only)."""
     from .effects.registry import get_effect
 
+    marked = {highlight} if isinstance(highlight, str) else set(highlight or ())
     lines = ["effects:"]
     for eid in sorted(effects):
         cls = get_effect(eid)
         defaults = cls.Params().model_dump(mode="json")
         params = {k: v for k, v in (effects[eid] or {}).items()
-                  if k in defaults and (defaults[k] != v or (highlight == eid and k in getattr(
+                  if k in defaults and (defaults[k] != v or (eid in marked and k in getattr(
                       cls, "fit_parameters", {})))}
         body = ", ".join(f"{k}: {_fmt(v)}" for k, v in params.items())
-        mark = "   # ← add" if eid == highlight else ""
+        mark = "   # ← add" if eid in marked else ""
         lines.append(f"  {eid}: {{{body}}}{mark}")
     return "\n".join(lines) + "\n"
 
@@ -405,90 +519,212 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             todo.append(eid)
     ctest = dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
                  level_test=bool(meas.known_output_groups))
-    suspects = []
-    for k, eid in enumerate(todo):
-        if progress:
-            progress(k, len(todo), eid)
-        new_eff, free = candidate_config(ir, lighting, effects, eid, base_free,
-                                         meas.known_output_groups)
+
+    def refit(eids: tuple[str, ...]) -> Suspect:
+        new_eff, free = effects, base_free
+        for eid in eids:
+            new_eff, free = candidate_config(ir, lighting, new_eff, eid, free, meas.known_output_groups)
         prob = FitProblem(meas, new_eff, free, noise.percent, noise.spectral_percent, cache,
                           tolerance=SCORING_TOLERANCE)
         fit = prob.solve()
         bic = fit.chi2 + len(free) * logn
-        params = {fp.name: fit.values[fp.target] for fp in free if fp.scope == "effect" and fp.ident == eid}
-        suspects.append(Suspect(
-            effect=eid, rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
+        by_effect = {eid: {fp.name: fit.values[fp.target] for fp in free
+                           if fp.scope == "effect" and fp.ident == eid} for eid in eids}
+        return Suspect(
+            effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
             n_params=len(free) - len(base_free), explains=consistent_with_noise(fit, **ctest),
             structure_after=moran_i(pts, fit.residual_percent) if len(pts) else float("nan"),
-            params=params, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent))
-    if progress:
-        progress(len(todo), len(todo), "")
-    suspects.sort(key=lambda s: -s.score)
+            params=by_effect[eids[0]] if len(eids) == 1 else {f"{e}.{k}": v for e, d in by_effect.items()
+                                                               for k, v in d.items()},
+            fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids, params_by_effect=by_effect)
 
-    d = Diagnosis("none", base, suspects, skipped, noise, structure_before=structure_before,
-                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held])
-    d.consistent = consistent_with_noise(base, **ctest)
-    red = base.chi2 / base.dof
+    suspects = []
+    for k, eid in enumerate(todo):
+        if progress:
+            progress(k, len(todo), eid)
+        suspects.append(refit((eid,)))
+    suspects.sort(key=lambda s: -s.score)
+    consistent = consistent_with_noise(base, **ctest)
+    pairs: list[Suspect] = []
+    helpful = [x for x in suspects if x.score > SIGNIFICANT]
+    if not any(x.explains for x in helpful) and not (consistent and not helpful):
+        # no single effect reaches the noise: two together might (search the best few suspects)
+        top = [x.effect for x in (helpful or suspects)[:PAIR_CANDIDATES]]
+        combos = list(combinations(top, 2))
+        for k, (a, b) in enumerate(combos):
+            if progress:
+                progress(len(todo) + k, len(todo) + len(combos), f"{a}+{b}")
+            pairs.append(refit((a, b)))
+        pairs.sort(key=lambda x: -x.score)
+    if progress:
+        progress(1, 1, "")
+
+    d = Diagnosis(Verdict("none"), base, suspects, skipped, noise, structure_before=structure_before,
+                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
+    d.consistent = consistent
     d.where = _where(meas, base)
+    d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects],
+                        [(x.effects, x.score, x.explains) for x in pairs])
+    d.confidence = _confidence(d, base_bic, noise)
+    _explain(d, meas, booth_effects, noise)
+    return d
+
+
+def _decide(base_explains: bool, singles, pairs) -> Verdict:
+    """The verdict from scored explanations: ``(effects, ΔBIC vs the booth as is, reaches the
+    noise?)`` for each single effect and each pair (see :class:`Verdict`).  The same rule scores
+    the data and every bootstrap resample."""
+    helpful = [h for h in singles if h[1] > SIGNIFICANT]
+    if base_explains and not helpful:
+        return Verdict("none")
+
+    def pick(cands, reach):
+        best = max(reach, key=lambda h: h[1])
+        tied = sorted((h for h in cands if h[1] >= best[1] - TIE_MARGIN), key=lambda h: -h[1])
+        if len(tied) == 1:
+            return Verdict("missing", best[0])
+        return Verdict("ambiguous", alternatives=tuple(h[0] for h in tied))
+
+    reach = [h for h in helpful if h[2]]
+    if reach:
+        return pick(helpful, reach)
+    best_single = max((h[1] for h in helpful), default=0.0)
+    # a pair counts only if its second effect matters: it must beat the best single effect too
+    good_pairs = [h for h in pairs if h[1] > SIGNIFICANT and h[1] > best_single + SIGNIFICANT]
+    reach = [h for h in good_pairs if h[2]]
+    if reach:
+        return pick(good_pairs, reach)
+    partial = max(helpful + good_pairs, key=lambda h: h[1], default=None)
+    return Verdict("unexplained", partial=partial[0] if partial else ())
+
+
+def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidence:
+    """ΔBIC margins and the recurrence of the verdict under resampled noise.
+
+    Linearised parametric bootstrap: data are redrawn from the verdict's own model with the
+    meter noise, y* = ŷ_W + σ·ε; an explanation k's χ² then moves from its fitted value by
+    2·d_k·ε (d_k: its predictions minus the verdict's, in noise units — the refit is taken as
+    fixed, which is exact to first order), and the verdict's own χ² is drawn from χ²_dof.  The
+    same decision rule (:func:`_decide`) is applied to each resample.
+    """
+    v = d.verdict
+    hyps = d.suspects + d.pairs
+    by_name = {x.effects: x for x in hyps}
+    winner = by_name.get(v.effects) if v.kind == "missing" else (
+        by_name.get(v.alternatives[0]) if v.kind == "ambiguous" else (
+            by_name.get(v.partial) if v.kind == "unexplained" and v.partial else None))
+    wfit = winner.fit if winner is not None else d.base
+    w_score = winner.score if winner is not None else 0.0
+    others = sorted((x.score for x in hyps if x is not winner), reverse=True)
+    if winner is not None:
+        others.append(0.0)          # the booth as it is
+    vs_next = (w_score - others[0]) if others else None
+    if wfit.lux_pred is None or noise.percent <= 0:
+        return Confidence(w_score if winner else None, vs_next, None)
+    z_w = wfit.residual_percent / noise.percent
+    rng = np.random.default_rng(20261123)
+    n = len(z_w)
+    eps = rng.standard_normal((BOOTSTRAP_SAMPLES, n))
+    dof_w = max(wfit.dof, 1)
+    chi2_w = rng.chisquare(dof_w, BOOTSTRAP_SAMPLES)
+    limit = dof_w * (1.0 + NOISE_Z * math.sqrt(2.0 / dof_w))
+
+    def moved(fit, chi2):
+        dk = fit.residual_percent / noise.percent - z_w
+        return chi2 + 2.0 * (eps @ dk)
+
+    base_chi2 = moved(d.base, d.base.chi2) if winner is not None else chi2_w
+    base_limit = max(d.base.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(d.base.dof, 1)))
+    rows = []
+    for x in hyps:
+        c = chi2_w if x is winner else moved(x.fit, x.chi2)
+        lim = limit if x is winner else max(x.fit.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(x.fit.dof, 1)))
+        # score = base BIC − BIC: the parameter penalties are those of the fits
+        pen = x.chi2 - x.score - d.base.chi2       # (k_x − k_base)·ln n
+        rows.append((x, c, c <= lim, pen))
+    same = 0
+    for b in range(BOOTSTRAP_SAMPLES):
+        bc = base_chi2[b] if np.ndim(base_chi2) else base_chi2
+        singles, pairs = [], []
+        for x, c, ok, pen in rows:
+            score = bc - (c[b] + pen)
+            (pairs if len(x.effects) > 1 else singles).append((x.effects, score, bool(ok[b])))
+        same += _decide(bool(bc <= base_limit), singles, pairs) == v
+    return Confidence(w_score if winner else None, vs_next, same / BOOTSTRAP_SAMPLES, BOOTSTRAP_SAMPLES)
+
+
+def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> None:
+    """The verdict's explanation lines and the booth-file snippet."""
+    base, suspects, v = d.base, d.suspects, d.verdict
+    red = base.chi2 / base.dof
+    share = noise.model_share(base.rmse_percent)
+    if share is not None:
+        d.explanation.append(f"the declared model uncertainty ({noise.model_percent:g} %) covers "
+                             f"{100 * share:.0f} % of the residual variance (RMSE {base.rmse_percent:.2f} %)")
     helpful = [s for s in suspects if s.score > SIGNIFICANT]
-    # χ²/dof is a weak test (its spread is √(2/dof)); a suspect that lowers the BIC by more than
-    # SIGNIFICANT is strong evidence even when χ² looks acceptable, so only the two together say
-    # "none".  Under pure noise one extra parameter gains χ²₁ − ln n, beyond 10 with p < 1e-3.
-    if d.consistent and not helpful:
-        d.verdict = "none"
+    if v.kind == "none":
         d.explanation.append(
             f"the residual is at the noise level (χ²/dof = {red:.2f} with noise {noise.percent:.2g} %) "
             "and no candidate effect improves the fit significantly: no missing effect is needed "
             "to explain these data")
-        return d
-    if d.consistent:
+        return
+    if d.consistent and helpful:
         d.explanation.append(
             f"χ²/dof = {red:.2f} is within the noise, but {helpful[0].effect} lowers the BIC by "
             f"{helpful[0].score:.1f}: the residual has structure that noise does not explain")
-    if not helpful:
-        d.verdict = "unexplained"
-        d.explanation.append(f"χ²/dof = {red:.2f}: the residual is above the noise "
-                             f"({noise.percent:.2g} %), but no registered effect explains it")
+    by_name = {x.effects: x for x in suspects + d.pairs}
+    if v.kind == "unexplained":
+        d.explanation.append(f"χ²/dof = {red:.2f}: the residual is above the noise ({noise.percent:.2g} %), "
+                             "and no effect, nor any pair of the best suspects, brings it to the noise")
+        if v.partial:
+            p = by_name[v.partial]
+            excess = max(base.chi2 - base.dof, 1e-9)
+            part = max(0.0, min(1.0, (base.chi2 - p.chi2) / excess))
+            d.explanation.append(
+                f"best partial explanation: {p.effect} explains {100 * part:.0f} % of the excess χ² "
+                f"(RMSE {base.rmse_percent:.2f} % → {p.rmse_percent_after:.2f} %, χ²/dof "
+                f"{p.fit.chi2 / p.fit.dof:.2f}); something else is missing too")
         d.explanation.extend(_trend(meas, base))
         if d.where:
             w = d.where[0]
             d.explanation.append(
                 f"largest residual {w['residual_percent']:+.2f} % at ({w['x_mm']:g}, {w['y_mm']:g}, "
                 f"{w['z_mm']:g}) mm ({w['file']}:{w['line']})")
-        return d
-    best = helpful[0]
-    tied = [s for s in helpful if s.score >= best.score - TIE_MARGIN]
-    d.tied = [s.effect for s in tied]
-    if len(tied) > 1:
-        d.verdict = "ambiguous:" + ",".join(d.tied)
+        return
+    if v.kind == "ambiguous":
+        alts = [by_name[a] for a in v.alternatives]
+        d.tied = v.tied
         d.explanation.append(
-            "these effects explain the data equally well (BIC within "
+            "these explanations fit the data equally well (BIC within "
             f"{TIE_MARGIN:g}): " + ", ".join(f"{s.effect} (RMSE {s.rmse_percent_after:.2f} %, score "
-                                              f"{s.score:.1f})" for s in tied))
+                                              f"{s.score:.1f})" for s in alts))
         d.explanation.append("run `lbscene plan` for the points that tell them apart, or declare the "
-                             "lamp output known (fit.known_output_groups)")
+                             "lamp output known (known_output_groups in the measurement set)")
     else:
-        d.verdict = f"missing:{best.effect}"
-        runner = next((s for s in suspects if s is not best), None)
-        msg = (f"{best.effect} lowers the RMSE from {base.rmse_percent:.2f} % to "
-               f"{best.rmse_percent_after:.2f} % (BIC −{best.score:.1f})")
+        best = by_name[v.effects]
+        d.tied = [best.effect]
+        runner = next((s for s in suspects + d.pairs if s is not best), None)
+        what = best.effect if len(v.effects) == 1 else " and ".join(v.effects) + " together"
+        msg = (f"{what} {'lowers' if len(v.effects) == 1 else 'lower'} the RMSE from "
+               f"{base.rmse_percent:.2f} % to {best.rmse_percent_after:.2f} % (BIC −{best.score:.1f}), "
+               "to the noise")
         if runner is not None:
-            msg += f"; the next suspect, {runner.effect}, scores {runner.score:.1f}"
+            msg += f"; the next explanation, {runner.effect}, scores {runner.score:.1f}"
         d.explanation.append(msg)
-        if not best.explains:
-            d.explanation.append(
-                f"after adding it the residual is still above the noise (χ²/dof = "
-                f"{best.fit.chi2 / best.fit.dof:.2f}): add it, run compare again — another effect "
-                "may be missing too")
-        # the suggestion is minimal: the booth's effects exactly as declared plus the new one with
-        # its fitted parameters.  The joint refit of the enabled effects' parameters is there to
+        if len(v.effects) > 1:
+            singles = {e: by_name.get((e,)) for e in v.effects}
+            d.explanation.append("alone, neither reaches the noise: " + ", ".join(
+                f"{e} leaves RMSE {x.rmse_percent_after:.2f} %" for e, x in singles.items() if x is not None))
+        # the suggestion is minimal: the booth's effects exactly as declared plus the new ones with
+        # their fitted parameters.  The joint refit of the enabled effects' parameters is there to
         # score candidates fairly; a 55-point grid rarely pins those values, so they stay the user's.
-        eff = {k: dict(v or {}) for k, v in booth_effects.items()}
-        eff[best.effect] = dict(best.params)
-        d.snippet = effects_snippet(eff, highlight=best.effect)
-    if base.spectral_rmse_percent is not None and d.verdict.startswith(("missing", "ambiguous")):
-        sp = [s for s in tied if s.spectral_rmse_after is not None]
+        eff = {k: dict(v_ or {}) for k, v_ in booth_effects.items()}
+        for e, params in best.params_by_effect.items():
+            eff[e] = dict(params)
+        d.snippet = effects_snippet(eff, highlight=set(v.effects))
+    if base.spectral_rmse_percent is not None:
+        alts = [by_name[a] for a in (v.alternatives if v.kind == "ambiguous" else (v.effects,))]
+        sp = [s for s in alts if s.spectral_rmse_after is not None]
         if sp:
             d.explanation.append("white-tile spectrum: RMSE " f"{base.spectral_rmse_percent:.2f} % → " +
                                  ", ".join(f"{s.effect} {s.spectral_rmse_after:.2f} %" for s in sp))
-    return d

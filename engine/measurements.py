@@ -98,6 +98,7 @@ class Measurements:
     spectral_noise_percent: float | None
     known_output_groups: list[str]
     doc: object = None
+    model_uncertainty_percent: float = 0.0
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -436,7 +437,8 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                         illuminance=ill, tile=tile,
                         declared_noise_percent=m.instrument.repeatability_percent,
                         spectral_noise_percent=m.instrument.spectral_noise_percent,
-                        known_output_groups=known, doc=doc)
+                        known_output_groups=known, doc=doc,
+                        model_uncertainty_percent=m.model_uncertainty_percent)
 
 
 def check_against_prediction(meas: Measurements, predicted_lux: np.ndarray | None,

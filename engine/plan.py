@@ -20,7 +20,7 @@ from itertools import combinations
 
 import numpy as np
 
-__all__ = ["PlannedPoint", "Plan", "candidate_pool", "plan_measurements", "TARGET_SEPARATION",
+__all__ = ["PlannedPoint", "Plan", "candidate_pool", "plan_measurements", "illuminance_upper_bound_lx", "TARGET_SEPARATION",
            "MIN_POINTS", "MAX_POINTS"]
 
 #: Accumulated χ² between every pair of candidates that the plan aims for (6σ: the refit of
@@ -114,6 +114,38 @@ def candidate_pool(ir, lighting: str, margin_mm: float = 30.0) -> tuple[np.ndarr
     return np.array(pts), np.array(nrm), kinds
 
 
+def illuminance_upper_bound_lx(ir, lighting: str, points_mm: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """An upper bound on the illuminance any sane model can give at ``points_mm`` (any normal).
+
+    Direct light: every lamp at its peak intensity as if all of it came from the lamp's point
+    nearest the reading, Σ s·I_peak / d_min² (cos θ ≤ 1, the profile ≤ its peak).  Inter-reflected
+    light: the interior returns at most ρ_max/(1 − ρ_max) of the flux it receives, spread over its
+    area, with a factor 4 for non-uniformity: 4·ρ_max/(1 − ρ_max)·Σ s·Φ / A.  ``scale`` is the
+    largest fitted lamp-level factor.
+    """
+    P = np.asarray(points_mm, float)
+    direct = np.zeros(len(P))
+    flux = 0.0
+    for lp, dim in ir.lamps_on(lighting):
+        c = np.asarray(lp.position_mm, float)
+        ax = np.asarray(lp.axis, float)
+        half = lp.length_mm / 2 if lp.kind in ("tube", "panel") else 0.0
+        t = np.clip((P - c) @ ax, -half, half)
+        d_m = np.maximum(np.linalg.norm(P - (c + t[:, None] * ax), axis=1), max(lp.radius_mm, 1.0)) / 1000.0
+        direct += dim * lp.peak_luminous_intensity_cd / d_m ** 2
+        flux += dim * lp.luminous_flux_lm
+    it = ir.interior
+    area_m2 = 2 * (it.width_mm * it.depth_mm + it.width_mm * it.height_mm + it.depth_mm * it.height_mm) / 1e6
+    from .spectral import REFERENCE_WAVELENGTHS_NM
+
+    vis = (REFERENCE_WAVELENGTHS_NM >= 380) & (REFERENCE_WAVELENGTHS_NM <= 780)
+    rho = 0.0
+    for mid in {sf.material for sf in ir.surfaces}:
+        rho = max(rho, float(np.max(np.asarray(ir.materials[mid].reflectance.array_1nm)[vis])))
+    rho = min(rho, 0.95)
+    return scale * (direct + 4.0 * rho / (1.0 - rho) * flux / max(area_m2, 1e-6))
+
+
 def plan_measurements(meas, fits: dict, noise_percent: float, *, max_points: int = MAX_POINTS,
                       target: float = TARGET_SEPARATION) -> Plan:
     """Choose extra readings that separate the candidate models ``fits`` (name → FitResult)."""
@@ -131,6 +163,14 @@ def plan_measurements(meas, fits: dict, noise_percent: float, *, max_points: int
     for name, fit in fits.items():
         fm = ForwardModel(meas.ir, meas.lighting, effects=fit.effects, lamp_overrides=fit.lamp_overrides)
         pred[name] = fm.illuminance_lx(P, N, True, scales=fit.scales)
+    # a reading no candidate can predict sanely is never proposed (a fitted parameter far outside
+    # what the data span can extrapolate wildly off the measured grid)
+    bound = illuminance_upper_bound_lx(meas.ir, meas.lighting, P,
+                                       max((max(f.scales.values(), default=1.0) for f in fits.values()),
+                                           default=1.0))
+    stack = np.stack(list(pred.values()))
+    sane = np.all(np.isfinite(stack) & (stack >= 0) & (stack <= bound), axis=0)
+    insane = int((~sane).sum())
     sigma = noise_percent / 100.0
     pairs = list(combinations(names, 2))
     z2 = {}
@@ -144,8 +184,9 @@ def plan_measurements(meas, fits: dict, noise_percent: float, *, max_points: int
     usable = np.ones(len(P), bool)
     # readings below 5 % of the median are impractical (noise is not 1 % there, and stray light
     # the model may lack dominates them)
-    med = np.median(np.stack(list(pred.values())), axis=0)
+    med = np.median(stack, axis=0)
     usable &= med > 0.05 * np.median(med)
+    usable &= sane
     for _ in range(max_points):
         if not pairs or (min(acc.values()) >= target and len(chosen) >= MIN_POINTS):
             break
@@ -173,6 +214,10 @@ def plan_measurements(meas, fits: dict, noise_percent: float, *, max_points: int
         points.append(PlannedPoint(tuple(float(c) for c in P[i]), tuple(float(c) for c in N[i]),
                                    kinds[i], vals, spread))
     plan = Plan(names, points, {f"{a}|{b}": float(acc[(a, b)]) for a, b in pairs}, noise_percent)
+    if insane:
+        plan.notes.append(f"{insane} candidate reading(s) left out: a candidate predicts more than the "
+                          "physical bound there (every lamp at its peak intensity from its nearest point, "
+                          "plus the most the interior can inter-reflect)")
     if pairs and min(acc.values()) < target:
         worst = min(acc, key=acc.get)
         plan.notes.append(f"{worst[0]} and {worst[1]} stay close everywhere a meter can go "

@@ -127,9 +127,16 @@ def render_report(res) -> str:
              f"<code>{e(str(res.meas.booth_file))}</code> (IR {e(res.booth_hash[:12])}) · lighting "
              f"<b>{e(res.meas.lighting)}</b> · effects: {e(', '.join(sorted(res.fit.effects)) or 'none')}</p>"]
     verdict = res.verdict
-    cls = "ok" if verdict == "none" else ("warn" if verdict.startswith("ambiguous") else "bad")
+    kind = getattr(verdict, "kind", "none")
+    cls = "ok" if kind == "none" else ("warn" if kind == "ambiguous" else "bad")
     parts.append(f"<div class='verdict {cls}'>verdict: <b>{e(verdict)}</b>"
                  + (f" <small>({e(res.outlier_note)})</small>" if res.outlier_note else "") + "</div>")
+    c = d.confidence if d is not None else None
+    if c is not None:
+        parts.append(_table(["ΔBIC over the booth as is", "ΔBIC over the next explanation",
+                             "same verdict under resampled noise"],
+                            [[_f(c.delta_bic_vs_base), _f(c.delta_bic_vs_next),
+                              "—" if c.recurrence is None else f"{100 * c.recurrence:.0f} % of {c.samples}"]]))
     if res.outliers:
         parts.append("<h2>Outlying readings</h2><p>Far from the model and from their neighbours.</p>" + _table(
             ["file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"],

@@ -106,6 +106,10 @@ class MeasurementSet(Document):
         default_factory=list,
         description="Lamp groups whose output is known for this session (added to the booth's "
                     "fit.known_output_groups): not fitted, so a level mismatch is evidence.")
+    model_uncertainty_percent: float = Field(
+        0.0, ge=0, le=50,
+        description="Relative uncertainty of the booth model itself (one standard deviation, %): folded "
+                    "into the meter noise, so residuals it covers are not taken as a missing effect.")
     notes: str = Field("", max_length=4000)
 
     @model_validator(mode="after")

@@ -97,9 +97,20 @@ def print_text(res, console) -> None:
             t.add_row(f"{o['file']}:{o['line']}", f"{o['x_mm']:g}", f"{o['y_mm']:g}", f"{o['z_mm']:g}",
                       f"{o['measured_lx']:.1f}", f"{o['model_lx']:.1f}", f"{o['deviation_percent']:+.1f}")
         console.print(t)
-    style = "green" if d.verdict == "none" else ("yellow" if d.verdict.startswith("ambiguous") else "red")
+    style = {"none": "green", "ambiguous": "yellow"}.get(d.verdict.kind, "red")
     console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]"
                   + (f"  ({res.outlier_note})" if res.outlier_note else ""))
+    c = d.confidence
+    if c is not None:
+        bits = []
+        if c.delta_bic_vs_base is not None:
+            bits.append(f"ΔBIC {c.delta_bic_vs_base:.1f} over the booth as is")
+        if c.delta_bic_vs_next is not None and d.verdict.kind != "none":
+            bits.append(f"{c.delta_bic_vs_next:.1f} over the next explanation")
+        if c.recurrence is not None:
+            bits.append(f"the same verdict in {100 * c.recurrence:.0f} % of {c.samples} noise resamples")
+        if bits:
+            console.print("confidence: " + "; ".join(bits))
     for x in d.explanation:
         console.print(f"  {x}")
     if d.snippet:

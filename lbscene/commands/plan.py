@@ -48,7 +48,7 @@ def register(app: typer.Typer) -> None:
 
             write_output(out, p.csv_template(), option="--out")
         if format is Format.json:
-            typer.echo(json.dumps({"verdict": res.verdict, "rmse_percent": round(res.fit.rmse_percent, 4),
+            typer.echo(json.dumps({"verdict": str(res.verdict), "rmse_percent": round(res.fit.rmse_percent, 4),
                                    "plan": p.to_json() if p else None,
                                    "csv": str(out) if out and p else None}, indent=2, ensure_ascii=False))
             return
