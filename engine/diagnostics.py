@@ -81,6 +81,11 @@ CODES: dict[str, str] = {
     "LB600": "build/bake/render failed",
     "LB601": "bake products missing",
     "LB602": "invalid bake job file",
+    "LB700": "web export: output folder is not a web export",
+    "LB701": "web export: data over the size limit",
+    "LB702": "visual session: inconsistent session",
+    "LB710": "visual results: unreadable results file",
+    "LB711": "visual results: results do not match the session",
 }
 
 
