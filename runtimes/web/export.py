@@ -20,6 +20,8 @@ works from ``file://``)::
     lbscene-executor.js     the WebGL2 render-graph executor (generic: knows no booth)
     viewer.js               UI, camera, test mode, results export
     lbscene-data.js         ``window.LBSCENE_DATA = {...}``: manifest + base64 blobs
+    model-delta-e00.csv     with a session: the model's ΔE00 per case
+                            (:mod:`lbscene.engine.visual_model`), for ``visual-report --model-de``
 
 Blobs are content-addressed (sha256), so data shared by views, samples or displays
 (booth meshes under fixed lamps, the LTC tables) are stored once.
@@ -58,6 +60,8 @@ __all__ = [
     "build_export",
     "write_export",
     "is_web_export",
+    "model_delta_e_csv",
+    "MODEL_DE_FILE",
 ]
 
 EXPORT_FORMAT = "lbscene.web_export"
@@ -65,6 +69,8 @@ EXPORT_VERSION = 1
 ASSET_DIR = Path(__file__).resolve().parent / "assets"
 ASSET_FILES = ("index.html", "viewer.css", "lbscene-executor.js", "viewer.js")
 DATA_FILE = "lbscene-data.js"
+#: Written with a session: the model's ΔE00 per case, for ``visual-report --model-de``.
+MODEL_DE_FILE = "model-delta-e00.csv"
 DATA_GLOBAL = "LBSCENE_DATA"
 
 
@@ -128,6 +134,40 @@ class WebExportInputs:
     source: str = ""
 
 
+def _display_path(display) -> Path | None:
+    """The display document of a :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`
+    (None for the built-in sRGB display)."""
+    prefix = "colour module: "
+    return Path(display.source[len(prefix):]) if display.source.startswith(prefix) else None
+
+
+def _model_case(lighting, view_spec, sample, display, vi, white_fraction) -> dict:
+    """The model's ΔE00 of a case (:mod:`lbscene.engine.visual_model`) on one display."""
+    from lbscene.engine.visual_model import case_delta_e00, reflectance_at
+
+    asp = float(view_spec["realised"]["aspecular_deg"])
+    de = case_delta_e00(vi.sample_irradiance_1nm, reflectance_at(sample, asp), display,
+                        display_path=_display_path(display), white_fraction=white_fraction)
+    return {"lighting": lighting, "geometry": view_spec["name"], "sample": sample.name,
+            "display": display.name, "aspecular_deg": asp, "delta_e00": round(de, 4)}
+
+
+def model_delta_e_csv(manifest: dict) -> str:
+    """``lighting,geometry,sample,delta_e00,display,aspecular_deg`` for ``visual-report
+    --model-de``: the cases on the export's first display (the configuration's)."""
+    import csv
+    import io
+
+    first = manifest["displays"][0]["name"]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["lighting", "geometry", "sample", "delta_e00", "display", "aspecular_deg"])
+    for r in manifest.get("model_delta_e00", []):
+        if r["display"] == first:
+            w.writerow([r["lighting"], r["geometry"], r["sample"], r["delta_e00"], r["display"], r["aspecular_deg"]])
+    return buf.getvalue()
+
+
 def _mesh_refs(store: BlobStore, meshes: dict) -> dict:
     out = {}
     for name, (v, idx) in meshes.items():
@@ -149,6 +189,7 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
     store = BlobStore()
     camera = inp.camera or CameraSpec()
     lightings = []
+    model_de: list[dict] = []
     static_refs: dict[str, dict] = {}
     for lname, (diffuse, bake) in inp.lightings.items():
         graph = build_render_graph(ir, lname)
@@ -173,9 +214,12 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
                 entry = {"meshes": _mesh_refs(store, vi0.meshes),
                          "textures": {k: store.add(a) for k, a in vi0.textures.items()},
                          "displays": []}
-                for b in row:
+                for di, b in enumerate(row):
                     vi = b.view(vname)
                     vals = {k: _plain(v) for k, v in vi.values.items() if v is not None}
+                    if inp.session is not None:
+                        model_de.append(_model_case(lname, vs, inp.samples[si], inp.displays[di], vi,
+                                                    inp.white_fraction))
                     entry["displays"].append({"values": vals,
                                               "exposure": float(vi.info["exposure"]),
                                               "sample_illuminance_lx": float(vi.info["sample_illuminance_lx"])})
@@ -213,6 +257,7 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
         "lightings": lightings, "samples": samples, "displays": displays,
         "session": inp.session,
     }
+    manifest["model_delta_e00"] = model_de
     manifest["blob_bytes"] = store.nbytes
     manifest["blobs"] = store.to_json()
     return manifest
@@ -233,6 +278,8 @@ def write_export(manifest: dict, out_dir: Path) -> list[Path]:
         for name in ASSET_FILES:
             shutil.copyfile(ASSET_DIR / name, tmp / name)
         text = json.dumps(manifest, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+        if manifest.get("model_delta_e00"):
+            (tmp / MODEL_DE_FILE).write_text(model_delta_e_csv(manifest), encoding="utf-8")
         (tmp / DATA_FILE).write_text(
             f"// lbscene web export: render graphs, shaders and data (generated; see index.html)\n"
             f"window.{DATA_GLOBAL} = {text};\n", encoding="utf-8")
@@ -240,4 +287,5 @@ def write_export(manifest: dict, out_dir: Path) -> list[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return [out_dir / n for n in ASSET_FILES + (DATA_FILE,)]
+    extra = (MODEL_DE_FILE,) if manifest.get("model_delta_e00") else ()
+    return [out_dir / n for n in ASSET_FILES + (DATA_FILE,) + extra]

@@ -33,7 +33,8 @@ def exported(tmp_path_factory):
 
 def test_folder_is_self_contained(exported):
     names = sorted(p.name for p in exported.iterdir())
-    assert names == ["index.html", "lbscene-data.js", "lbscene-executor.js", "viewer.css", "viewer.js"]
+    assert names == ["index.html", "lbscene-data.js", "lbscene-executor.js", "model-delta-e00.csv",
+                     "viewer.css", "viewer.js"]
     for name in ("index.html", "viewer.js", "lbscene-executor.js", "viewer.css"):
         text = (exported / name).read_text()
         # nothing is fetched from elsewhere: no absolute URLs, no module imports, no CDN
@@ -101,3 +102,27 @@ def test_size_limit(run_cli, tmp_path):
     assert code == 2
     assert "error LB701: the export would hold 5 MB of data (got 4.8 MB; expected at most --max-mb 1)" in err
     assert not (tmp_path / "v").exists()
+
+
+def test_model_delta_e_feeds_visual_report(exported, run_cli, tmp_path):
+    import csv
+
+    from lbscene.engine.visual_protocol import load_session
+
+    rows = list(csv.DictReader((exported / "model-delta-e00.csv").open()))
+    ses = load_session(SESSION)
+    # every exported view × sample (a superset of the session's cases)
+    assert set(ses.cases) < {(r["lighting"], r["geometry"], r["sample"]) for r in rows}
+    assert len(rows) == 4 * 2
+    grey = {r["delta_e00"] for r in rows if r["sample"].startswith("Grey")}
+    assert len(grey) == 1 and float(grey.pop()) < 0.5      # a neutral: 8-bit rounding only
+    res = tmp_path / "r.csv"
+    res.write_text("observer,repeat,lighting,geometry,sample,score\n" + "".join(
+        f'{t["observer"]},{t["repeat"]},{t["lighting"]},{t["geometry"]},"{t["sample"]}",4\n' for t in ses.trials))
+    code, out, err = run_cli("visual-report", res, "--session", SESSION, "--model-de",
+                             exported / "model-delta-e00.csv", "--format", "json")
+    assert code == 0, err
+    st = json.loads(out)
+    assert st["summary"]["stress_vs_model"] is not None
+    want = {(r["geometry"], r["sample"]): float(r["delta_e00"]) for r in rows}
+    assert {c["model_delta_e00"] for c in st["cases"]} == {want[(c["geometry"], c["sample"])] for c in st["cases"]}
