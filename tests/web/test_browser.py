@@ -24,6 +24,7 @@ DATA = Path(__file__).resolve().parent / "data"
 CONFIG = DATA / "tube-gonio.yaml"
 SESSION = DATA / "session-tube.yaml"
 SIZE = (192, 144)
+TABLET = Path(__file__).resolve().parents[2] / "displays" / "tablet-wide-gamut.yaml"
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
@@ -33,11 +34,12 @@ def exported(tmp_path_factory):
     from lbscene.cli import main
 
     out = tmp_path_factory.mktemp("web") / "viewer"
-    assert main(["export-web", str(CONFIG), "--session", str(SESSION), "--out", str(out)]) == 0
+    assert main(["export-web", str(CONFIG), "--session", str(SESSION), "--display", str(TABLET),
+                 "--out", str(out)]) == 0
     return out
 
 
-def _moderngl(view: str, sample_index: int = 0) -> np.ndarray:
+def _moderngl(view: str, sample_index: int = 0, display=None) -> np.ndarray:
     from lbscene.runtimes.executor import GLUnavailableError
     from lbscene.runtimes.render import prepare_from_config
     from lbscene.engine.visual_protocol import load_session
@@ -45,6 +47,10 @@ def _moderngl(view: str, sample_index: int = 0) -> np.ndarray:
     job = prepare_from_config(CONFIG)
     if sample_index:
         job.sample = load_session(SESSION).samples[sample_index]
+    if display is not None:
+        from lbscene.runtimes.colour_bridge import display_uniforms
+
+        job.display = display_uniforms(display)
     try:
         r = job.renderer()
     except GLUnavailableError as exc:
@@ -74,16 +80,22 @@ def test_screenshot_matches_moderngl(exported, tmp_path, record_property):
     assert browser.std() > 5
 
 
-def test_frame_times_and_other_view_and_sample(exported, record_property):
-    rep = run_viewer(exported, size_px=SIZE, bench=8, extra={"view": "45as45", "sample": 1})
+def test_frame_times_other_view_sample_and_display(exported, record_property):
+    # the wide-gamut tablet profile (GOG tone response, its own primaries, flare): display 1
+    rep = run_viewer(exported, size_px=SIZE, bench=8, extra={"view": "45as45", "sample": 1, "display": 1})
     assert rep.raw["view"] == "45as45" and rep.raw["sample"].startswith("Grey")
+    assert rep.raw["display"] == "Wide-gamut tablet (estimate)"
     assert len(rep.frame_ms) == 8 and all(t > 0 for t in rep.frame_ms)
     assert "SwiftShader" in rep.gl_renderer or rep.gl_renderer
     record_property("frame_ms_median", float(np.median(rep.frame_ms)))
     print(f"browser frame time {SIZE[0]}x{SIZE[1]} ({rep.gl_renderer}): median "
           f"{np.median(rep.frame_ms):.1f} ms, first frame {rep.first_frame_ms:.0f} ms")
-    de = image_delta_e00(rep.rgba8, _moderngl("45as45", sample_index=1)[..., :3])
+    de = image_delta_e00(rep.rgba8, _moderngl("45as45", sample_index=1, display=TABLET)[..., :3], TABLET)
+    print(f"readback vs moderngl, 45as45, grey, tablet display: ΔE00 mean {de.mean():.4f}, max {de.max():.2f}")
     assert de.mean() <= 1.0
+    # and the profile matters: the same frame on the sRGB profile differs
+    srgb = run_viewer(exported, size_px=SIZE, bench=1, extra={"view": "45as45", "sample": 1, "display": 0})
+    assert np.abs(srgb.rgba8.astype(int) - rep.rgba8).max() > 5
 
 
 def test_tilt_moves_the_sample(exported):
