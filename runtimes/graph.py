@@ -3,7 +3,9 @@ The declarative realtime render graph of one booth and lighting configuration.
 
 ``lbscene build`` calls :func:`write_build_products` for every lighting
 configuration; it writes ``lighting/<NAME>/render_graph.json``, which the
-moderngl runtime (:mod:`lbscene.runtimes.executor`) executes.  The graph is
+moderngl runtime (:mod:`lbscene.runtimes.executor`) executes, and which
+``lbscene export-web`` hands, with the same shader files, to the WebGL2 executor
+of the web viewer (:mod:`lbscene.runtimes.web`).  The graph is
 plain data (canonical JSON, byte-identical for the same IR):
 
 ``passes``
