@@ -25,9 +25,11 @@ demo: $(STAMP)
 	bash scripts/demo.sh
 
 test: $(STAMP)
+	bash scripts/install-test-deps.sh
 	$(BIN)/pytest -q
 
 test-all: $(STAMP)
+	bash scripts/install-test-deps.sh
 	$(BIN)/pytest -q -m ""
 
 bench: $(STAMP)

@@ -43,10 +43,10 @@ def row(H, truth: str, known: bool) -> list[str]:
         res = run_compare(m, do_plan=True)
         secs = time.perf_counter() - t0
         before = res.fit.rmse_percent
-        verdict, after_plan = res.verdict, "—"
-        if verdict.startswith("ambiguous:"):
+        verdict, after_plan = str(res.verdict), "—"
+        if res.verdict.kind == "ambiguous":
             m, res = H.resolve_with_plan(booth, td / "m", truth, known, res)
-            after_plan = res.verdict
+            after_plan = str(res.verdict)
         after = "—"
         if res.diagnosis.snippet:
             H.add_to_booth(booth, res.diagnosis.snippet)

@@ -89,6 +89,11 @@ CODES: dict[str, str] = {
     "LB610": "output cannot be written there",
     "LB611": "output exists and was not written by lbscene",
     "LB612": "output would replace one of the run's inputs",
+    "LB700": "web export: output folder is not a web export",
+    "LB701": "web export: data over the size limit",
+    "LB702": "visual session: inconsistent session",
+    "LB710": "visual results: unreadable results file",
+    "LB711": "visual results: results do not match the session",
 }
 
 

@@ -333,11 +333,12 @@ def _foreign_files(folder: Path, listed: set[str]) -> list[str]:
 
 
 def check_output_dir(path: Path | str, *, option: str | None = None,
-                     location: SourceLocation | None = None) -> Path:
+                     location: SourceLocation | None = None, owned=None) -> Path:
     """Check, before any work, that the folder ``path`` may be (re)written as an lbscene product.
 
     Accepted: a path that does not exist, an empty folder, or a folder with lbscene's
-    ``manifest.json`` that holds nothing the manifest does not list.
+    ``manifest.json`` that holds nothing the manifest does not list, or a folder the
+    product's own test ``owned(path)`` recognises (e.g. an earlier web export).
     """
     path = Path(path)
     inp = _is_input(path)
@@ -366,7 +367,7 @@ def check_output_dir(path: Path | str, *, option: str | None = None,
             empty = not any(path.iterdir())
         except OSError as exc:
             raise _err("LB610", f"cannot read the folder: {exc.strerror}", path, option, location) from None
-        if not empty:
+        if not empty and not (owned is not None and owned(path)):
             listed = _manifest_files(path)
             if listed is None:
                 raise _err("LB611", "folder exists and is not an lbscene output (no lbscene manifest.json); "

@@ -3,7 +3,9 @@ The declarative realtime render graph of one booth and lighting configuration.
 
 ``lbscene build`` calls :func:`write_build_products` for every lighting
 configuration; it writes ``lighting/<NAME>/render_graph.json``, which the
-moderngl runtime (:mod:`lbscene.runtimes.executor`) executes.  The graph is
+moderngl runtime (:mod:`lbscene.runtimes.executor`) executes, and which
+``lbscene export-web`` hands, with the same shader files, to the WebGL2 executor
+of the web viewer (:mod:`lbscene.runtimes.web`).  The graph is
 plain data (canonical JSON, byte-identical for the same IR):
 
 ``passes``
@@ -354,6 +356,7 @@ def _surface_draws(to_display: bool) -> list[dict]:
     surface_uniforms = {"u_view_proj": "view.view_proj", "u_model": "view.identity"}
     sample_uniforms = dict(surface_uniforms)
     sample_uniforms.update({
+        "u_model": "sample.model",
         "u_eye_mm": "view.eye_mm",
         "u_illumination_mm": "view.illumination_centre_mm",
         "u_sample_geometry_count": "sample.geometry_count",
@@ -449,7 +452,8 @@ def _passes() -> list[dict]:
              {"name": "background", "fullscreen": True, "depth_func": "<=", "depth_write": False,
               "program": {"vertex": "fullscreen.vert", "fragment": "background.frag",
                           "include": [LIB_DISPLAY, LIB_DITHER]},
-              "defines": dict(DISPLAY_DEFINES, FULLSCREEN_Z={"value": 1.0}),
+              # the value as GLSL text: a JSON number would lose its ".0" (WebGL reads this graph too)
+              "defines": dict(DISPLAY_DEFINES, FULLSCREEN_Z={"value": "1.0"}),
               "uniforms": dict(DISPLAY_UNIFORMS, **DITHER_UNIFORMS),
               "textures": dict(RESOLVE_TEXTURES)}]},
     ]
@@ -467,6 +471,9 @@ SCHEDULES = {"analysis": ["surfaces", "spectral_to_xyz", "display", "dither"],
 _VALUES_DOC = {
     "view.view_proj": "mat4, booth millimetres → clip space (camera of the view / config)",
     "view.identity": "mat4 identity (geometry is placed per view on the CPU)",
+    "sample.model": "mat4, rigid transform of the sample after its placement: a tilt about its centre "
+                    "(the web viewer's tilt control; identity in renders). The sample's per-vertex "
+                    "irradiance stays that of the untilted sample",
     "view.eye_mm": "vec3, camera position (mm)",
     "view.illumination_centre_mm": "vec3, centre of the light defining the geometry, rotated",
     "view.emitter_count": "int, rows of the emitters texture",

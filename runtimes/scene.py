@@ -377,6 +377,9 @@ class SceneBuilder:
         :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`.
     bake
         :class:`~lbscene.runtimes.bake.BakeProducts` or None.
+    irradiance_memo
+        A dict shared with other builders of the same IR, lighting, diffuse mode and bake
+        (per-vertex irradiance is keyed by mesh name and receiver positions).
     diffuse
         ``'analytic'`` or ``'baked'`` (needs ``bake``).
     exposure
@@ -393,7 +396,7 @@ class SceneBuilder:
     def __init__(self, ir, graph: dict, sample: SampleSpec, display, *, bake=None,
                  diffuse: str = "analytic", exposure: str = "relative_white",
                  white_fraction: float = 1.0, dither: bool = True, camera: CameraSpec | None = None,
-                 adaptation: str = "cat16"):
+                 adaptation: str = "cat16", irradiance_memo: dict | None = None):
         from lbscene.engine.colour.adaptation import ADAPTATION_METHODS
 
         if adaptation not in ADAPTATION_METHODS:
@@ -413,7 +416,9 @@ class SceneBuilder:
         self.dither = bool(dither)
         self.camera = camera or CameraSpec()
         self._views: dict[str, ViewInputs] = {}
-        self._irradiance_memo: dict[tuple, np.ndarray] = {}
+        # per-vertex irradiance by (mesh, receivers): builders of one booth and lighting that
+        # differ in sample or display (the web export) can share it
+        self._irradiance_memo: dict[tuple, np.ndarray] = {} if irradiance_memo is None else irradiance_memo
         self._static: dict[str, np.ndarray] | None = None
         self._geometry: dict | None = None
         dims = (ir.interior.width_mm, ir.interior.depth_mm, ir.interior.height_mm)
@@ -635,6 +640,7 @@ class SceneBuilder:
 
         values = {
             "view.identity": _gl(np.eye(4)),
+            "sample.model": _gl(np.eye(4)),
             "view.eye_mm": None,   # set per frame (camera)
             "view.illumination_centre_mm": np.asarray(illum, np.float32),
             "view.emitter_count": len(ems),

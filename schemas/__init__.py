@@ -20,6 +20,7 @@ DOCUMENT_KINDS: dict[str, str] = {
     "display": "lbscene.schemas.display:Display",
     "measurement_set": "lbscene.schemas.measurement:MeasurementSet",
     "render_config": "lbscene.schemas.render_config:RenderConfig",
+    "visual_session": "lbscene.schemas.visual_session:VisualSession",
 }
 
 

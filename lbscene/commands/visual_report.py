@@ -1,0 +1,63 @@
+"""``lbscene visual-report RESULTS... --session S [--model-de CSV] [--report OUT.html]``"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from lbscene.commands.options import Format, allow_path_option
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("visual-report")
+    def visual_report(
+        results: List[Path] = typer.Argument(..., help="Results files of the viewer's test mode (CSV or JSON)."),
+        session: Path = typer.Option(..., "--session", help="The session file (kind: visual_session)."),
+        model_de: Optional[Path] = typer.Option(
+            None, "--model-de", help="CSV lighting,geometry,sample,delta_e00: the model's ΔE00 per case "
+                                     "(for STRESS against the model)."),
+        report: Optional[Path] = typer.Option(None, "--report", help="Write one self-contained HTML report."),
+        json_out: Optional[Path] = typer.Option(None, "--json-out", help="Write the statistics as JSON."),
+        format: Format = typer.Option(Format.text, "--format", help="text or json."),
+        allow_path: Optional[List[Path]] = allow_path_option(),
+    ) -> None:
+        """Mean score per case, intra-/inter-observer STRESS and STRESS against the model's ΔE00."""
+        from lbscene.engine.load import display_path
+        from lbscene.engine.outputs import check_outputs, write_output
+        from lbscene.engine.visual_protocol import load_session, read_results
+        from lbscene.engine.visual_report import analyse, read_model_delta_e, render_html
+
+        check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[*results, session, model_de])
+        ses = load_session(session, tuple(allow_path or ()))
+        rows = read_results(results, ses)
+        model = read_model_delta_e(model_de, ses) if model_de is not None else None
+        stats = analyse(rows, ses, model)
+        if report is not None:
+            write_output(report, render_html(stats, ses), option="--report")
+        if json_out is not None:
+            write_output(json_out, json.dumps(stats, indent=1, ensure_ascii=False) + "\n", option="--json-out")
+        if format is Format.json:
+            typer.echo(json.dumps(stats, indent=1, ensure_ascii=False))
+            return
+        from rich.console import Console
+        from rich.table import Table
+
+        t = Table(title=f"session {stats['session']}: {stats['responses']} responses, "
+                        f"{len(stats['observers'])} observers")
+        for col in ("lighting", "geometry", "sample", "n", "mean score", "sd", "ΔV", "model ΔE00"):
+            t.add_column(col, justify="left" if col in ("lighting", "geometry", "sample") else "right")
+        for c in stats["cases"]:
+            t.add_row(c["lighting"], c["geometry"], c["sample"], str(c["n"]), f"{c['mean_score']:.2f}",
+                      f"{c['sd_score']:.2f}", f"{c['mean_delta_v']:.2f}",
+                      "" if c.get("model_delta_e00") is None else f"{c['model_delta_e00']:.2f}")
+        Console().print(t)
+        s = stats["summary"]
+        typer.echo(f"intra-observer STRESS: mean {s['intra_observer_stress_mean']:.1f}  "
+                   f"inter-observer STRESS: mean {s['inter_observer_stress_mean']:.1f}"
+                   + (f"  STRESS vs model ΔE00: {s['stress_vs_model']:.1f}" if s.get("stress_vs_model") is not None
+                      else "  (no --model-de: no STRESS against the model)"))
+        if report is not None:
+            typer.echo(f"wrote {display_path(report)}")

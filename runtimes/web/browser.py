@@ -1,0 +1,215 @@
+"""
+Drive headless Chromium against an exported viewer (tests and benchmarks).
+
+The folder is served on ``127.0.0.1`` by Python's :mod:`http.server` in a thread; the
+page is opened with URL parameters (see ``assets/viewer.js``) that make it render,
+measure frame times and POST a JSON report (frame times, the canvas pixels read back
+with ``readPixels``) to ``/report`` on the same server.  :func:`screenshot` takes a
+browser screenshot (``--screenshot``) of the canvas-only page instead.
+
+Chromium runs with SwiftShader (a CPU implementation of WebGL2), no sandbox, a fresh
+profile and no background network traffic::
+
+    chromium --headless --no-sandbox --disable-gpu --use-angle=swiftshader ...
+
+Examples
+--------
+>>> find_chromium() is None or find_chromium().name.startswith("chrom")   # doctest: +SKIP
+True
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from functools import partial
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from urllib.parse import urlencode
+
+import numpy as np
+
+__all__ = ["find_chromium", "chromium_flags", "serve", "BrowserReport", "run_viewer", "screenshot",
+           "image_delta_e00"]
+
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def find_chromium() -> Path | None:
+    """The Chromium executable on PATH (Debian's package installs ``/usr/bin/chromium``)."""
+    for name in CHROMIUM_NAMES:
+        p = shutil.which(name)
+        if p:
+            return Path(p)
+    return None
+
+
+def chromium_flags(profile_dir: Path, width_px: int, height_px: int) -> list[str]:
+    """Headless, software WebGL2 (SwiftShader through ANGLE), no network side traffic,
+    sRGB output (no colour management of the canvas), device pixels = CSS pixels."""
+    return ["--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync",
+            "--no-first-run", "--no-default-browser-check", "--disable-extensions",
+            "--disable-features=Translate,MediaRouter,OptimizationHints",
+            "--force-color-profile=srgb", "--force-device-scale-factor=1",
+            "--hide-scrollbars", f"--user-data-dir={profile_dir}",
+            f"--window-size={width_px},{height_px}"]
+
+
+class _Handler(SimpleHTTPRequestHandler):
+    def __init__(self, *a, reports=None, **kw):
+        self._reports = reports
+        super().__init__(*a, **kw)
+
+    def log_message(self, *args) -> None:   # quiet
+        pass
+
+    def do_POST(self) -> None:  # noqa: N802 (http.server's name)
+        n = int(self.headers.get("Content-Length", "0"))
+        body = self.rfile.read(n)
+        try:
+            self._reports.append(json.loads(body))
+        except ValueError:
+            self._reports.append({"kind": "error", "error": "unreadable report"})
+        self.send_response(204)
+        self.end_headers()
+
+
+@contextmanager
+def serve(folder: Path):
+    """Serve ``folder`` on an ephemeral localhost port; yields ``(base_url, reports)``."""
+    reports: list[dict] = []
+    handler = partial(_Handler, directory=str(folder), reports=reports)
+    srv = ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    th = threading.Thread(target=srv.serve_forever, daemon=True)
+    th.start()
+    try:
+        yield f"http://127.0.0.1:{srv.server_address[1]}", reports
+    finally:
+        srv.shutdown()
+        srv.server_close()
+
+
+@dataclass
+class BrowserReport:
+    """What the page reported: ``rgba8`` (H, W, 4) uint8 top row first, frame times (ms)."""
+
+    raw: dict
+    rgba8: np.ndarray | None
+    frame_ms: list[float]
+    first_frame_ms: float | None
+    gl_renderer: str
+    wall_s: float
+
+
+def _wait(proc, reports, want, timeout_s):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        hit = [r for r in reports if r.get("kind") in (want, "error")]
+        if hit:
+            return hit[0]
+        if proc.poll() is not None and not reports:
+            time.sleep(0.2)
+            if not reports:
+                break
+        time.sleep(0.1)
+    return None
+
+
+def run_viewer(folder: Path, *, size_px=(512, 384), bench: int = 10, timeout_s: float = 180.0,
+               extra: dict | None = None, want: str = "frame", chromium: Path | None = None) -> BrowserReport:
+    """Open the viewer in headless Chromium, let it render ``bench`` frames and return
+    its report (raises RuntimeError with Chromium's output when none comes)."""
+    chromium = chromium or find_chromium()
+    if chromium is None:
+        raise RuntimeError("chromium not found")
+    w, h = size_px
+    q = {"size": f"{w}x{h}", "bench": bench, "report": "/report", "shot": 1}
+    q.update(extra or {})
+    with serve(Path(folder)) as (base, reports), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+        url = f"{base}/index.html?{urlencode(q)}"
+        t0 = time.monotonic()
+        proc = subprocess.Popen([str(chromium), *chromium_flags(Path(prof), w, h),
+                                 "--remote-debugging-port=0", url],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        try:
+            rep = _wait(proc, reports, want, timeout_s)
+        finally:
+            proc.terminate()
+            try:
+                out = proc.communicate(timeout=10)[0]
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                out = proc.communicate()[0]
+        wall = time.monotonic() - t0
+    if rep is None:
+        raise RuntimeError(f"no report from the viewer within {timeout_s} s; chromium said:\n"
+                           + out.decode(errors="replace")[-3000:])
+    if rep.get("kind") == "error":
+        raise RuntimeError(f"the viewer failed: {rep.get('error')}")
+    rgba = None
+    if "rgba8_base64" in rep:
+        rgba = np.frombuffer(base64.b64decode(rep["rgba8_base64"]), np.uint8).reshape(
+            rep["height"], rep["width"], 4).copy()
+    return BrowserReport(raw=rep, rgba8=rgba, frame_ms=list(rep.get("frame_ms", [])),
+                         first_frame_ms=rep.get("first_frame_ms"), gl_renderer=str(rep.get("gl_renderer", "")),
+                         wall_s=wall)
+
+
+def screenshot(folder: Path, out_png: Path, *, size_px=(512, 384), extra: dict | None = None,
+               timeout_s: float = 180.0, chromium: Path | None = None) -> Path:
+    """A Chromium screenshot (``--screenshot``) of the canvas-only page (``shot=1``).
+
+    ``--virtual-time-budget`` lets the page load, compile and draw before the capture.
+    """
+    chromium = chromium or find_chromium()
+    if chromium is None:
+        raise RuntimeError("chromium not found")
+    w, h = size_px
+    q = {"size": f"{w}x{h}", "shot": 1}
+    q.update(extra or {})
+    out_png = Path(out_png).resolve()
+    with serve(Path(folder)) as (base, _), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+        cmd = [str(chromium), *chromium_flags(Path(prof), w, h), f"--screenshot={out_png}",
+               "--virtual-time-budget=30000", f"{base}/index.html?{urlencode(q)}"]
+        res = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout_s)
+    if not out_png.is_file():
+        raise RuntimeError("chromium wrote no screenshot:\n" + res.stdout.decode(errors="replace")[-3000:])
+    return out_png
+
+
+def image_delta_e00(a_rgb8: np.ndarray, b_rgb8: np.ndarray, display_path: Path | None = None) -> np.ndarray:
+    """Per-pixel CIEDE2000 between two 8-bit images *after the display model*: codes → the
+    XYZ the display emits (``display_path``: a display document through the colour module's
+    ``DisplayModel.drive_to_xyz``; None: the sRGB reference display, IEC 61966-2-1), then
+    CIELAB relative to the display's white."""
+    import colour
+
+    a = np.asarray(a_rgb8)[..., :3]
+    b = np.asarray(b_rgb8)[..., :3]
+    if a.shape != b.shape:
+        raise ValueError(f"image sizes differ: {a.shape} and {b.shape}")
+    if display_path is None:
+        to_xyz = lambda c: colour.sRGB_to_XYZ(c / 255.0)              # noqa: E731 (Y of white = 1)
+        white = colour.sRGB_to_XYZ(np.ones(3))
+    else:
+        from lbscene.engine.colour.display_model import load_display
+
+        model = load_display(display_path)
+        to_xyz = lambda c: model.drive_to_xyz(c / 255.0)               # noqa: E731 (8-bit frames)
+        white = model.drive_to_xyz(np.ones(3))
+    white = np.asarray(white, float)
+
+    def lab(codes):
+        return colour.XYZ_to_Lab(np.asarray(to_xyz(codes.astype(float)), float) / white[1],
+                                 colour.XYZ_to_xy(white))
+
+    return np.asarray(colour.delta_E(lab(a), lab(b), method="CIE 2000"), float)

@@ -1,0 +1,291 @@
+"""
+Export a booth's render graphs and their render-time inputs as a static WebGL2 viewer.
+
+The viewer runs the **same render graph** (``runtimes/graph.py``, one per lighting)
+with the **same GLSL ES 3.00 files** (``runtimes/shaders``, embedded verbatim and
+composed in the browser by the same rule as :func:`~lbscene.runtimes.graph.compose_shader`)
+as the moderngl executor.  What the moderngl runtime computes in Python per view
+(:class:`~lbscene.runtimes.scene.SceneBuilder`: meshes with per-vertex band irradiance
+from the forward model, the emitters and sample textures, the values the bindings name)
+is computed here, at export time, for every lighting × view × sample × display, and
+stored as little-endian binary blobs.  Only the camera (``view.view_proj``,
+``view.eye_mm``) and the sample's tilt (``sample.model``) are computed per frame in the
+browser.
+
+Folder layout (everything self-contained; nothing is fetched, so ``index.html`` also
+works from ``file://``)::
+
+    index.html              the viewer page (controls, canvas, frame time, test mode)
+    viewer.css
+    lbscene-executor.js     the WebGL2 render-graph executor (generic: knows no booth)
+    viewer.js               UI, camera, test mode, results export
+    lbscene-data.js         ``window.LBSCENE_DATA = {...}``: manifest + base64 blobs
+    model-delta-e00.csv     with a session: the model's ΔE00 per case
+                            (:mod:`lbscene.engine.visual_model`), for ``visual-report --model-de``
+
+Blobs are content-addressed (sha256), so data shared by views, samples or displays
+(booth meshes under fixed lamps, the LTC tables) are stored once.
+
+Examples
+--------
+>>> from lbscene.runtimes.web.export import BlobStore
+>>> import numpy as np
+>>> s = BlobStore(); ref = s.add(np.ones((2, 3), np.float32))
+>>> ref["dtype"], ref["shape"], len(s.blobs)
+('float32', [2, 3], 1)
+>>> s.add(np.ones((2, 3), np.float32)) == ref     # same content, same blob
+True
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = [
+    "EXPORT_FORMAT",
+    "EXPORT_VERSION",
+    "ASSET_DIR",
+    "ASSET_FILES",
+    "DATA_FILE",
+    "BlobStore",
+    "WebExportInputs",
+    "build_export",
+    "write_export",
+    "is_web_export",
+    "model_delta_e_csv",
+    "MODEL_DE_FILE",
+]
+
+EXPORT_FORMAT = "lbscene.web_export"
+EXPORT_VERSION = 1
+ASSET_DIR = Path(__file__).resolve().parent / "assets"
+ASSET_FILES = ("index.html", "viewer.css", "lbscene-executor.js", "viewer.js")
+DATA_FILE = "lbscene-data.js"
+#: Written with a session: the model's ΔE00 per case, for ``visual-report --model-de``.
+MODEL_DE_FILE = "model-delta-e00.csv"
+DATA_GLOBAL = "LBSCENE_DATA"
+
+
+class BlobStore:
+    """Content-addressed little-endian arrays: ``add`` returns a reference
+    ``{"blob": id, "dtype": "float32"|"uint32", "shape": [...]}``."""
+
+    def __init__(self) -> None:
+        self.blobs: dict[str, bytes] = {}
+
+    def add(self, array, dtype=np.float32) -> dict:
+        a = np.ascontiguousarray(array, dtype=np.dtype(dtype).newbyteorder("<"))
+        raw = a.tobytes()
+        key = hashlib.sha256(raw + str(a.dtype.name).encode()).hexdigest()[:20]
+        self.blobs.setdefault(key, raw)
+        return {"blob": key, "dtype": np.dtype(dtype).name, "shape": list(a.shape)}
+
+    @property
+    def nbytes(self) -> int:
+        return sum(len(b) for b in self.blobs.values())
+
+    def to_json(self) -> dict[str, str]:
+        return {k: base64.b64encode(v).decode("ascii") for k, v in sorted(self.blobs.items())}
+
+
+def _plain(v):
+    """A binding value as JSON (arrays → flat lists, numpy scalars → Python)."""
+    if isinstance(v, np.ndarray):
+        return [float(x) for x in v.ravel()] if not np.issubdtype(v.dtype, np.integer) else \
+            [int(x) for x in v.ravel()]
+    if isinstance(v, (bool, np.bool_)):
+        return int(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    return v
+
+
+@dataclass
+class WebExportInputs:
+    """What to export.
+
+    ``lightings``: name → ``(diffuse, bake)`` (``'analytic'`` with ``None``, or ``'baked'``
+    with :class:`~lbscene.runtimes.bake.BakeProducts`).  ``samples``: list of
+    :class:`~lbscene.runtimes.scene.SampleSpec`; ``displays``: list of
+    :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`.
+    """
+
+    ir: Any
+    lightings: dict[str, tuple[str, Any]]
+    samples: list
+    displays: list
+    size_px: tuple[int, int] = (1024, 768)
+    exposure: str = "relative_white"
+    white_fraction: float = 1.0
+    dither: bool = True
+    camera: Any = None
+    initial: dict = field(default_factory=dict)
+    session: dict | None = None
+    source: str = ""
+
+
+def _display_path(display) -> Path | None:
+    """The display document of a :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`
+    (None for the built-in sRGB display)."""
+    prefix = "colour module: "
+    return Path(display.source[len(prefix):]) if display.source.startswith(prefix) else None
+
+
+def _model_case(lighting, view_spec, sample, display, vi, white_fraction) -> dict:
+    """The model's ΔE00 of a case (:mod:`lbscene.engine.visual_model`) on one display."""
+    from lbscene.engine.visual_model import case_delta_e00, reflectance_at
+
+    asp = float(view_spec["realised"]["aspecular_deg"])
+    de = case_delta_e00(vi.sample_irradiance_1nm, reflectance_at(sample, asp), display,
+                        display_path=_display_path(display), white_fraction=white_fraction)
+    return {"lighting": lighting, "geometry": view_spec["name"], "sample": sample.name,
+            "display": display.name, "aspecular_deg": asp, "delta_e00": round(de, 4)}
+
+
+def model_delta_e_csv(manifest: dict) -> str:
+    """``lighting,geometry,sample,delta_e00,display,aspecular_deg`` for ``visual-report
+    --model-de``: the cases on the export's first display (the configuration's)."""
+    import csv
+    import io
+
+    first = manifest["displays"][0]["name"]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["lighting", "geometry", "sample", "delta_e00", "display", "aspecular_deg"])
+    for r in manifest.get("model_delta_e00", []):
+        if r["display"] == first:
+            w.writerow([r["lighting"], r["geometry"], r["sample"], r["delta_e00"], r["display"], r["aspecular_deg"]])
+    return buf.getvalue()
+
+
+def _mesh_refs(store: BlobStore, meshes: dict) -> dict:
+    out = {}
+    for name, (v, idx) in meshes.items():
+        out[name] = {"vertices": store.add(v, np.float32), "indices": store.add(idx, np.uint32),
+                     "count": int(len(idx))}
+    return out
+
+
+def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = None) -> dict:
+    """The viewer's data: a JSON-ready manifest with ``blobs`` (base64).
+
+    For every lighting, view, sample and display the same
+    :class:`~lbscene.runtimes.scene.SceneBuilder` calls as ``lbscene render`` make.
+    """
+    from lbscene.runtimes.graph import build_render_graph, shader_sources
+    from lbscene.runtimes.scene import CameraSpec, SceneBuilder
+
+    ir = inp.ir
+    store = BlobStore()
+    camera = inp.camera or CameraSpec()
+    lightings = []
+    model_de: list[dict] = []
+    static_refs: dict[str, dict] = {}
+    for lname, (diffuse, bake) in inp.lightings.items():
+        graph = build_render_graph(ir, lname)
+        memo: dict = {}
+        builders = [[SceneBuilder(ir, graph, s, d, bake=bake, diffuse=diffuse, exposure=inp.exposure,
+                                  white_fraction=inp.white_fraction, dither=inp.dither, camera=camera,
+                                  irradiance_memo=memo)
+                     for d in inp.displays] for s in inp.samples]
+        b0 = builders[0][0]
+        st = b0.static_textures()
+        for name in ("ltc_minv", "ltc_mag", "blue_noise"):
+            static_refs.setdefault(name, store.add(st[name]))
+        views = []
+        for vname in b0.view_names:
+            if progress:
+                progress(f"{lname} / {vname}")
+            per_sample = []
+            vs = next(v for v in graph["views"] if v["name"] == vname)
+            cam = None
+            for si, row in enumerate(builders):
+                vi0 = row[0].view(vname)
+                entry = {"meshes": _mesh_refs(store, vi0.meshes),
+                         "textures": {k: store.add(a) for k, a in vi0.textures.items()},
+                         "displays": []}
+                for di, b in enumerate(row):
+                    vi = b.view(vname)
+                    vals = {k: _plain(v) for k, v in vi.values.items() if v is not None}
+                    if inp.session is not None:
+                        model_de.append(_model_case(lname, vs, inp.samples[si], inp.displays[di], vi,
+                                                    inp.white_fraction))
+                    entry["displays"].append({"values": vals,
+                                              "exposure": float(vi.info["exposure"]),
+                                              "sample_illuminance_lx": float(vi.info["sample_illuminance_lx"])})
+                per_sample.append(entry)
+                if cam is None:
+                    # the camera rule of SceneBuilder.camera_values, as data for the browser
+                    eye = np.asarray(camera.position_mm or vs["camera"]["position_mm"], float)
+                    target = np.asarray(camera.look_at_mm if camera.look_at_mm is not None
+                                        else vi0.sample_centre_mm, float)
+                    dist = float(np.linalg.norm(target - eye))
+                    cam = {"eye_mm": eye.tolist(), "target_mm": target.tolist(), "up": [0.0, 0.0, 1.0],
+                           "vertical_fov_deg": float(camera.vertical_fov_deg),
+                           "near_mm": max(1.0, min(10.0, 0.05 * dist)),
+                           "far_mm": dist + 4.0 * row[0].extent_mm,
+                           "sample_centre_mm": [float(x) for x in vi0.sample_centre_mm],
+                           "sample_normal": [float(x) for x in vi0.sample_normal]}
+            views.append({"name": vname, "geometry": vs["geometry"], "realised": vs["realised"],
+                          "platform_rotation_deg": vs["platform_rotation_deg"], "camera": cam,
+                          "samples": per_sample})
+        lightings.append({"name": lname, "diffuse": diffuse, "graph": graph,
+                          "textures": {"materials": store.add(st["materials"])}, "views": views})
+    displays = [{"name": d.name, "source": d.source, "white_Y_cd_m2": float(d.white_Y_cd_m2),
+                 "textures": {"tone_lut": store.add(d.lut_texture())}} for d in inp.displays]
+    samples = [{"name": s.name, "gloss_GU": float(s.gloss_GU), "roughness": float(s.roughness),
+                "size_mm": [float(x) for x in s.size_mm],
+                "geometries": [label for _, label, _ in s.geometries]} for s in inp.samples]
+    manifest = {
+        "format": EXPORT_FORMAT, "version": EXPORT_VERSION,
+        "booth": ir.booth_name, "ir_hash": ir.content_hash, "source": inp.source,
+        "size_px": list(inp.size_px),
+        "exposure": {"mode": inp.exposure, "white_fraction": inp.white_fraction},
+        "initial": dict(inp.initial),
+        "shaders": shader_sources(),
+        "static_textures": static_refs,
+        "lightings": lightings, "samples": samples, "displays": displays,
+        "session": inp.session,
+    }
+    manifest["model_delta_e00"] = model_de
+    manifest["blob_bytes"] = store.nbytes
+    manifest["blobs"] = store.to_json()
+    return manifest
+
+
+def is_web_export(folder: Path) -> bool:
+    """Whether ``folder`` holds a web export (the only kind of folder ``write_export`` replaces)."""
+    return (Path(folder) / DATA_FILE).is_file() and (Path(folder) / "index.html").is_file()
+
+
+def write_export(manifest: dict, out_dir: Path) -> list[Path]:
+    """Write the viewer folder atomically (assembled in a sibling, then moved into place)."""
+    from lbscene.engine.atomic import atomic_replace_dir, temporary_dir_for
+
+    out_dir = Path(out_dir)
+    tmp = temporary_dir_for(out_dir)
+    try:
+        for name in ASSET_FILES:
+            shutil.copyfile(ASSET_DIR / name, tmp / name)
+        text = json.dumps(manifest, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+        if manifest.get("model_delta_e00"):
+            (tmp / MODEL_DE_FILE).write_text(model_delta_e_csv(manifest), encoding="utf-8")
+        (tmp / DATA_FILE).write_text(
+            f"// lbscene web export: render graphs, shaders and data (generated; see index.html)\n"
+            f"window.{DATA_GLOBAL} = {text};\n", encoding="utf-8")
+        atomic_replace_dir(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    extra = (MODEL_DE_FILE,) if manifest.get("model_delta_e00") else ()
+    return [out_dir / n for n in ASSET_FILES + (DATA_FILE,) + extra]
