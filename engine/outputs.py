@@ -221,6 +221,19 @@ def _probe_parent(path: Path, option: str | None, location) -> None:
     os.unlink(name)
 
 
+def _lstat(path: Path, option, location) -> os.stat_result | None:
+    """``lstat`` of an output path (None if it does not exist); LB610 where it cannot be used."""
+    try:
+        return path.lstat()
+    except FileNotFoundError:
+        return None
+    except NotADirectoryError:
+        raise _err("LB610", "cannot write here: a parent of this path is a file, not a folder", path,
+                   option, location, expected="a path whose parents are folders") from None
+    except OSError as exc:
+        raise _err("LB610", f"cannot use this path: {exc.strerror}", path, option, location) from None
+
+
 def _confine(path: Path, confine_to: Path | None, allowed_dirs: Iterable[Path], option, location) -> None:
     if confine_to is None:
         return
@@ -260,15 +273,7 @@ def check_output_file(path: Path | str, *, option: str | None = None,
     if str(path) in ("", "."):
         raise _err("LB610", "expected a file name, got the current folder", path, option, location)
     _confine(path, confine_to, allowed_dirs, option, location)
-    try:
-        st = path.lstat()
-    except FileNotFoundError:
-        st = None
-    except NotADirectoryError:
-        raise _err("LB610", "cannot write here: a parent of this path is a file, not a folder", path,
-                   option, location, expected="a path whose parents are folders") from None
-    except OSError as exc:
-        raise _err("LB610", f"cannot use this path: {exc.strerror}", path, option, location) from None
+    st = _lstat(path, option, location)
     if st is not None and stat.S_ISDIR(st.st_mode):
         raise _err("LB610", "is a folder; expected a file name", path, option, location,
                    expected="a file path")
@@ -345,15 +350,7 @@ def check_output_dir(path: Path | str, *, option: str | None = None,
     if inp is not None:
         raise _err("LB612", "output folder would replace or hold one of this run's inputs", path, option,
                    location, value=inp, expected="a folder that holds no input")
-    try:
-        st = path.lstat()
-    except FileNotFoundError:
-        st = None
-    except NotADirectoryError:
-        raise _err("LB610", "cannot write here: a parent of this path is a file, not a folder", path,
-                   option, location, expected="a path whose parents are folders") from None
-    except OSError as exc:
-        raise _err("LB610", f"cannot use this path: {exc.strerror}", path, option, location) from None
+    st = _lstat(path, option, location)
     if st is not None and str(path.resolve()) == str(Path.cwd().resolve()):
         raise _err("LB610", "the current folder cannot be an output folder", path, option, location,
                    expected="a sub-folder name, e.g. build/<booth>")

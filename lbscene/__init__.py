@@ -10,25 +10,15 @@ The stable Python API (:mod:`lbscene.api`) is exported here: ``load_booth``,
 ``render_from_config``, and the error type ``LbsceneUserError``.
 """
 
-__all__ = [
-    "__version__",
-    "load_booth",
-    "compile_booth",
-    "ForwardModel",
-    "validate",
-    "build",
-    "compare",
-    "plan",
-    "render_from_config",
-    "LbsceneUserError",
-    "Diagnostic",
-]
+from lbscene.api import __all__ as _API   # names only: the API module imports nothing heavy
+
+__all__ = ["__version__", *_API]
 __version__ = "0.1.0"
 
 
 def __getattr__(name: str):
     # the API is imported on first use: `import lbscene` and `lbscene --help` stay light
-    if name in __all__ and name != "__version__":
+    if name in _API:
         from lbscene import api
 
         return getattr(api, name)

@@ -36,18 +36,6 @@ def a_booth(tmp_path_factory):
     return d
 
 
-@pytest.fixture(scope="module")
-def gl_ctx():
-    from lbscene.runtimes.executor import GLUnavailableError, create_context
-
-    try:
-        ctx = create_context()
-    except GLUnavailableError as exc:
-        pytest.skip(f"no OpenGL context: {exc}")
-    yield ctx
-    ctx.release()
-
-
 def _grey_pixel(a_booth, ctx, adaptation):
     from lbscene.engine.compile import compile_booth
     from lbscene.runtimes.colour_bridge import srgb_display

@@ -33,18 +33,6 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
 @pytest.fixture(scope="module")
-def gl_ctx():
-    from lbscene.runtimes.executor import GLUnavailableError, create_context
-
-    try:
-        ctx = create_context()
-    except GLUnavailableError as exc:
-        pytest.skip(f"no OpenGL context: {exc}")
-    yield ctx
-    ctx.release()
-
-
-@pytest.fixture(scope="module")
 def tube_ir():
     from lbscene.engine.compile import compile_booth
 
