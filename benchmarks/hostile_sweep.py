@@ -143,6 +143,10 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
             out.append((f"history --plot {name}", ["history", meas, "--plot", p], {}))
             out.append((f"accuracy --plot {name}", ["accuracy", "--booth", b, "--no-cie", "--plot", p], {}))
         out.append((f"render -o {name}", ["render", cfg, "--no-input", "-o", p], {}))
+    for name, p in odd_dirs.items():
+        out.append((f"export-web --out {name}", ["export-web", cfg, "--out", p], {}))
+    out.append(("visual-report --report user file", ["visual-report", ws["grid"], "--session", ws["cfg"],
+                                                     "--report", ws["user_file"]], {}))
     out.append(("render -o the sample", ["render", cfg, "--no-input", "-o", ws["sample"]], {}))
     out.append(("render output.png escapes", ["render", ws["cfg_escape"], "--no-input"], {}))
     out.append(("render output.png is its config", ["render", ws["cfg_self"], "--no-input"], {}))
