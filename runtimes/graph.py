@@ -231,7 +231,14 @@ def _profile_samples(ir, lamp) -> list[float]:
         return [1.0] * PROFILE_SAMPLES
     from lbscene.engine.profiles import profile_shape
 
-    return _rv(np.clip(profile_shape(lamp.profile)(theta), 0.0, None))
+    shape = profile_shape(lamp.profile)
+    if getattr(shape, "two_d", False):
+        # the highlight shader takes f(θ) only: an IES file's C-planes are averaged here (the
+        # diffuse light, from the forward model or the bake, honours them)
+        c = np.radians(np.arange(0.0, 360.0, 5.0))
+        T, C = np.meshgrid(theta, c, indexing="ij")
+        return _rv(np.clip(shape(T, C).mean(axis=1), 0.0, None))
+    return _rv(np.clip(shape(theta), 0.0, None))
 
 
 def _emitters(ir, lighting: str) -> list[dict]:

@@ -59,11 +59,17 @@ __all__ = [
 
 @dataclass(frozen=True)
 class EmitterSet:
-    """Point emitters standing for one lamp (or an image of it).
+    """Point emitters standing for one lamp (or an image of it): a quadrature of the lamp's
+    :class:`~lbscene.engine.emitters.Emitter`.
 
-    The spectral radiant intensity of point ``i`` toward a direction at
-    angle θ from ``aim`` is ``weights[i] · shape(θ) · spectrum_1nm``
-    (W·sr⁻¹·nm⁻¹); ``weights`` sum to 1 for an unmodified lamp.
+    The spectral radiant intensity of point ``i`` toward a unit direction ``u``
+    (after ``direction_map``) is ``weights[i] · b_i(u) · f(u) · spectrum_1nm``
+    (W·sr⁻¹·nm⁻¹) with ``f`` the modulation ``shape`` (θ from ``aim``; IES: γ, C
+    in the frame of ``lamp_axis``) and ``b_i`` the emitter's own law:
+    ``max(0, normals[i]·u)`` for points on a Lambertian surface, ``sin`` of the
+    angle to ``line_axis`` for a tube's line quadrature (the far field of a
+    Lambertian cylinder slice; with ``line_radius_mm`` > 0 the forward model
+    integrates the slice's visible arc at each receiver instead), 1 otherwise.
     """
 
     lamp_id: str
@@ -83,6 +89,14 @@ class EmitterSet:
     #: half of the piece of lamp each point stands for (tubes), mm vector; None for points
     half_step: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    #: (N, 3) outward normals of surface points (Lambertian law); None: no surface law
+    normals: np.ndarray | None = None
+    #: tube axis of a line quadrature (sin law); None: none
+    line_axis: np.ndarray | None = None
+    #: tube radius of a line quadrature: > 0 integrates each slice's visible arc exactly
+    line_radius_mm: float = 0.0
+    #: the lamp's axis: C = 0 of a two-dimensional (IES) modulation
+    lamp_axis: np.ndarray | None = None
 
     def with_(self, **kw) -> "EmitterSet":
         return replace(self, **kw)
@@ -144,14 +158,45 @@ class ForwardContext:
         return hit
 
     def fraction_hitting(self, es: "EmitterSet", rx: np.ndarray, rect) -> np.ndarray:
-        """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`."""
+        """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`.
+
+        A tube slice of radius r > 0 is not its axis: its light toward a receiver leaves
+        the arc it sees, so the fraction is averaged over :data:`TUBE_RING` lines on the
+        tube's surface, each weighted by its Lambertian ``max(0, n·u)`` toward the receiver.
+        """
         from lbscene.engine.forward_geometry import segment_fraction_hitting
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
         hole = rect.hole_half if rect.hole_half is not None else (-1.0, -1.0)
-        return self.memo("hit", (es.points_mm, half, rx, rect.centre, rect.normal, rect.u,
-                                 rect.half, hole),
-                         lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
+        key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half, hole)
+        if es.line_axis is None or es.line_radius_mm <= 0:
+            return self.memo("hit", key,
+                             lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
+
+        def ring():
+            a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+            a = a / np.linalg.norm(a)
+            e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(a, e1)
+            d = rx[:, None, :] - es.points_mm[None, :, :]
+            num = np.zeros(d.shape[:2])
+            den = np.zeros(d.shape[:2])
+            for k in range(TUBE_RING):
+                phi = 2.0 * np.pi * (k + 0.5) / TUBE_RING
+                nk = np.cos(phi) * e1 + np.sin(phi) * e2
+                w = np.clip(d @ nk, 0.0, None)            # ∝ max(0, n·u) (common 1/|d| cancels)
+                f = segment_fraction_hitting(es.points_mm + es.line_radius_mm * nk, es.half_step,
+                                             rx, rect)
+                num += w * f
+                den += w
+            return np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+
+        return self.memo("hit", key + (np.asarray([es.line_radius_mm]),), ring)
+
+
+#: lines around a tube's surface over which occlusion is averaged
+TUBE_RING = 8
 
 
 def effect_params(cls, params: dict | None):
