@@ -53,6 +53,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -73,6 +74,12 @@ __all__ = [
     "base_law",
     "unit_irradiance",
 ]
+
+
+@lru_cache(maxsize=64)
+def _gauss(n: int):
+    """Gauss–Legendre nodes and weights on [-1, 1] (cached: numpy solves an eigenproblem)."""
+    return np.polynomial.legendre.leggauss(n)
 
 
 def _unit(v) -> np.ndarray:
@@ -289,8 +296,8 @@ class PanelEmitter(Emitter):
         ratio = self.length_mm / max(self.width_mm, 1e-9)
         nu = max(1, int(round(np.sqrt(n * ratio))))
         nv = max(1, int(round(n / nu)))
-        xu, wu = np.polynomial.legendre.leggauss(nu)
-        xv, wv = np.polynomial.legendre.leggauss(nv)
+        xu, wu = _gauss(nu)
+        xv, wv = _gauss(nv)
         U, V = np.meshgrid(xu / 2, xv / 2, indexing="ij")
         W = np.outer(wu / 2, wv / 2).ravel()
         pts = (self.centre_mm + np.outer(U.ravel() * self.length_mm, self.axis)

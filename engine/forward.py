@@ -493,25 +493,26 @@ class ForwardModel:
             t = np.clip(rel @ ax, -lamp.length_mm / 2, lamp.length_mm / 2)
             dist = np.linalg.norm(rel - np.outer(t, ax), axis=1)
             if lamp.kind == "panel":
-                # a grid of cells ~√(ℓw/n) wide: refine to cells of a fifth of the distance
+                # a rule of ~n nodes ~√(ℓw/n) apart: near receivers need nodes a fifth of their
+                # distance apart
                 dist = np.abs(rel @ np.asarray(lamp.aim, float))
                 cell = np.sqrt(lamp.length_mm * lamp.width_mm / n)
                 near = dist < opt.near_field_factor * cell
-                if near.any():
-                    dmin = max(float(dist[near].min()), 1.0)
-                    n_fine = int(min(4 * opt.max_points,
-                                     np.ceil(lamp.length_mm * lamp.width_mm / (dmin / 5.0) ** 2)))
-                    if n_fine > n:
-                        add(self.emitter_sets(lamp, n_fine, level), np.nonzero(near)[0])
-                return acc
-            dist = np.maximum(dist - lamp.radius_mm, 0.0)          # to the tube's surface
-            near = dist < opt.near_field_factor * spacing
+                need = lamp.length_mm * lamp.width_mm / (np.maximum(dist, 1.0) / 5.0) ** 2
+            else:
+                # slices finer than the distance to the surface (each slice's arc is exact already)
+                dist = np.maximum(dist - lamp.radius_mm, 0.0)
+                near = dist < opt.near_field_factor * spacing
+                need = n * opt.near_field_factor * spacing / np.maximum(dist, max(0.05 * spacing, 1e-3))
             if near.any():
-                # slices finer than the distance (each slice's visible arc is exact already)
-                dmin = max(float(dist[near].min()), 0.05 * spacing, 1e-3)
-                n_fine = int(min(opt.max_points, np.ceil(n * opt.near_field_factor * spacing / dmin)))
-                if n_fine > n:
-                    add(self.emitter_sets(lamp, n_fine, level), np.nonzero(near)[0])
+                # rows grouped by the resolution they need (powers of two of n): a few receivers
+                # touching the lamp do not make every near receiver pay for the finest rule
+                octave = np.ceil(np.log2(np.maximum(np.minimum(need, opt.max_points) / n, 1.0)))
+                for k in np.unique(octave[near]):
+                    n_fine = int(min(opt.max_points, n * 2 ** k))
+                    rows = np.nonzero(near & (octave == k))[0]
+                    if n_fine > n and rows.size:
+                        add(self.emitter_sets(lamp, n_fine, level), rows)
         return acc
 
     def direct_terms(self, points, normals=None, meter=None, *, exclude: Sequence[str] = (),

@@ -30,7 +30,7 @@ from .diagnostics import LbsceneUserError
 from .yamlio import read_text_bounded
 
 __all__ = ["IsotropicShape", "GaussianShape", "CosinePowerShape", "IesShape", "profile_shape",
-           "solid_angle_weight_sr", "read_ies", "IesData"]
+           "solid_angle_weight_sr", "read_ies", "IesData", "ies_text"]
 
 
 @dataclass(frozen=True)
@@ -155,6 +155,22 @@ def read_ies(path: Path, display: str) -> IesData:
             expected="horizontal angles increasing from 0 and ending at 0 (rotational), 90 "
                      "(quadrant), 180 (bilateral) or up to 360° (full; the 360° plane may be left out)")
     return IesData(v, h, cd, lm_per_lamp)
+
+
+def ies_text(data: dict) -> str:
+    """An IES LM-63-2002 file (type C, TILT=NONE, multiplier 1) of an IR profile's ``data`` table.
+
+    Builds carry the lamp's photometry as a file (``ies/<lamp id>.ies``) for other tools;
+    the numbers are the IR's, so :func:`read_ies` gives the same table back.
+    """
+    v = [float(x) for x in data["vertical_deg"]]
+    h = [float(x) for x in data["horizontal_deg"]]
+    cd = [[float(x) for x in row] for row in data["candela"]]
+    fmt = lambda xs: " ".join(f"{x:.10g}" for x in xs)  # noqa: E731
+    lines = ["IESNA:LM-63-2002", "[MANUFAC] written by lbscene from the scene IR", "TILT=NONE",
+             f"1 {float(data['lumens_per_lamp']):.10g} 1 {len(v)} {len(h)} 1 2 0 0 0", "1 1 0",
+             fmt(v), fmt(h)] + [fmt(row) for row in cd]
+    return "\n".join(lines) + "\n"
 
 
 def profile_shape(profile, resolve=None):

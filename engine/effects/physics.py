@@ -161,15 +161,21 @@ class ForwardContext:
         """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`.
 
         A tube slice of radius r > 0 is not its axis: its light toward a receiver leaves
-        the arc it sees, so the fraction is averaged over :data:`TUBE_RING` lines on the
-        tube's surface, each weighted by its Lambertian ``max(0, n·u)`` toward the receiver.
+        the arc it sees, so for a rectangle within :data:`TUBE_RING_REACH` radii the fraction
+        is averaged over :data:`TUBE_RING` lines on the tube's surface, each weighted by its
+        Lambertian ``max(0, n·u)`` toward the receiver.
         """
         from lbscene.engine.forward_geometry import segment_fraction_hitting
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
         hole = rect.hole_half if rect.hole_half is not None else (-1.0, -1.0)
         key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half, hole)
-        if es.line_axis is None or es.line_radius_mm <= 0:
+        # the tube's width only shifts a shadow edge noticeably when the rectangle is within a
+        # few radii of it (apertures, slots); farther away its axis stands for it
+        close = (es.line_axis is not None and es.line_radius_mm > 0 and
+                 abs(float((es.points_mm.mean(axis=0) - rect.centre) @ rect.normal))
+                 < TUBE_RING_REACH * es.line_radius_mm)
+        if not close:
             return self.memo("hit", key,
                              lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
 
@@ -197,6 +203,8 @@ class ForwardContext:
 
 #: lines around a tube's surface over which occlusion is averaged
 TUBE_RING = 8
+#: ... for rectangles closer to the tube than this many radii
+TUBE_RING_REACH = 8.0
 
 
 def effect_params(cls, params: dict | None):

@@ -301,3 +301,20 @@ profile: {type: ies, path: lamp.ies}""")
     assert "LB203" in text and "lamp.ies" in text
     assert "IES horizontal angles 0..120 are not a type C set" in text
     assert "Traceback" not in text
+
+
+def test_build_carries_the_ies_file(tmp_path):
+    from lbscene.engine.build import build_booth
+    from lbscene.engine.profiles import read_ies
+
+    d = booth(tmp_path, """
+type: point
+position_mm: [0, 0, 700]
+output: {type: peak_intensity_cd, value_cd: 1000}
+profile: {type: ies, path: lamp.ies}""")
+    (d / "lamp.ies").write_text(_ies(list(range(0, 91, 15)), V_DEG, _cd))
+    build_booth(d, tmp_path / "out")
+    got = read_ies(tmp_path / "out" / "ies" / "L.ies", "L.ies")
+    want = read_ies(d / "lamp.ies", "lamp.ies")
+    assert np.array_equal(got.horizontal_deg, want.horizontal_deg)
+    assert np.allclose(got.candela, want.candela, rtol=1e-9)
