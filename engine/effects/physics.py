@@ -40,8 +40,9 @@ Diagnosis metadata (class attributes):
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, ClassVar
+from typing import Any, Callable, ClassVar, Protocol
 
 import numpy as np
 
@@ -49,6 +50,10 @@ from .registry import Effect
 
 __all__ = [
     "PhysicalEffect",
+    "EffectHooks",
+    "HOOKS",
+    "BACKENDS",
+    "check_effect_class",
     "EmitterSet",
     "PathChannel",
     "LambertianSource",
@@ -222,8 +227,85 @@ def effect_params(cls, params: dict | None):
 _PARAMS_CACHE: dict = {}
 
 
+class EffectHooks(Protocol):
+    """Every hook an effect may define (all optional; see the module docstring)."""
+
+    @staticmethod
+    def modify_emitters(ctx: ForwardContext, p: Any, lamp: Any, es: EmitterSet) -> EmitterSet: ...
+
+    @staticmethod
+    def extra_emitters(ctx: ForwardContext, p: Any, lamp: Any, es: EmitterSet) -> list[EmitterSet]: ...
+
+    @staticmethod
+    def path_factors(ctx: ForwardContext, p: Any, es: EmitterSet,
+                     rx_points: np.ndarray) -> list[PathChannel] | None: ...
+
+    @staticmethod
+    def secondary_sources(ctx: ForwardContext, p: Any, direct: Callable) -> list[LambertianSource]: ...
+
+    @staticmethod
+    def receiver_response(ctx: ForwardContext, p: Any, cos_incidence: np.ndarray) -> np.ndarray: ...
+
+    @staticmethod
+    def global_transport(ctx: ForwardContext, p: Any, model: Any) -> Any: ...
+
+
+#: hook name → number of arguments (after the class, for classmethods)
+HOOKS: dict[str, int] = {
+    name: len(inspect.signature(getattr(EffectHooks, name)).parameters)
+    for name in ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources",
+                 "receiver_response", "global_transport")
+}
+#: backends that consume effects: the analytic forward model, the Monte Carlo reference engine,
+#: Cycles bake jobs, the realtime render graph
+BACKENDS = frozenset({"forward", "reference", "cycles", "realtime"})
+#: public class members of an effect that are not hooks
+_METADATA = frozenset({"Params", "applicable", "fit_parameters_for", "describe_params",
+                       "diagnosis_params", "refit_cost_s"})
+
+
+def check_effect_class(cls) -> None:
+    """Raise ``TypeError`` unless ``cls`` keeps to the hook interface.
+
+    Every public callable it defines must be a hook of :class:`EffectHooks` with the hook's
+    number of arguments, a metadata member, or named in its ``helpers``; ``backends`` must be
+    a subset of :data:`BACKENDS` that includes ``'forward'``.
+    """
+    helpers = set(getattr(cls, "helpers", ()))
+    for klass in cls.__mro__:
+        if klass in (PhysicalEffect, Effect, object):
+            continue
+        for name, raw in vars(klass).items():
+            if name.startswith("_") or name in _METADATA or name in helpers:
+                continue
+            fn = raw.__func__ if isinstance(raw, (staticmethod, classmethod)) else raw
+            if not callable(fn) or isinstance(fn, type):
+                continue
+            if name not in HOOKS:
+                raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: {name!r} is not a hook "
+                                f"(hooks: {', '.join(sorted(HOOKS))}); list helper methods in "
+                                f"`helpers`")
+            n = len(inspect.signature(fn).parameters) - (1 if isinstance(raw, classmethod) else 0)
+            if n != HOOKS[name]:
+                raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: hook {name} takes "
+                                f"{n} arguments, the interface {HOOKS[name]}")
+    backends = getattr(cls, "backends", BACKENDS)
+    if not set(backends) <= BACKENDS or "forward" not in backends:
+        raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: backends {sorted(backends)} "
+                        f"must include 'forward' and be among {sorted(BACKENDS)}")
+
+
 class PhysicalEffect(Effect):
-    """Base class of effects with forward-model physics (see the module docstring)."""
+    """Base class of effects with forward-model physics (see the module docstring).
+
+    Hooks are the methods of :class:`EffectHooks`; registering a class that defines any other
+    public method (not listed in ``helpers``) is an error.
+    """
+
+    #: backends that model this effect (see :data:`BACKENDS`)
+    backends: ClassVar[frozenset[str]] = BACKENDS
+    #: public methods that are not hooks
+    helpers: ClassVar[tuple[str, ...]] = ()
 
     #: evaluation order among enabled effects (lower first)
     order: ClassVar[int] = 100
