@@ -101,7 +101,8 @@ def _profile(lamp, effects):
         return CosinePowerProfile(exponent=float(prof["exponent"]))
     if t == "ies":
         d = prof["data"]
-        cd = np.asarray(d["candela"], float).mean(axis=0)   # axial mean (as the model's IesShape)
+        # the bake's profiles are f(θ): an IES file's C-planes are averaged (lighting_job notes it)
+        cd = np.asarray(d["candela"], float).mean(axis=0)
         return TableProfile(theta_deg=tuple(float(x) for x in d["vertical_deg"]),
                             relative=tuple(float(x) for x in cd / cd.max()))
     if p.get("sigma_deg") is not None:
@@ -264,6 +265,14 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     g = ir.grid
     nb = g.count
     notes = []
+    from lbscene.engine.effects.physics import BACKENDS
+    from lbscene.engine.effects.registry import get_effect
+
+    # effects a bake does not model are named in the job, never silently dropped (instrument
+    # effects describe a meter's reading, not the light in the booth)
+    off = sorted(e for e in effects if "cycles" not in getattr(get_effect(e), "backends", BACKENDS))
+    if off:
+        notes.append(f"not modelled by the bake (its effect declares no 'cycles' backend): {', '.join(off)}")
 
     # ---- turning luminaire (illumination fixed to a rotating platform)
     pf = ir.platform
@@ -331,6 +340,9 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             w = end + (1.0 - end) * t
         per_point = g.integrate(spec) / len(pts)
         profile = _profile(lamp, effects)
+        if isinstance(profile, TableProfile) and len(lamp.profile["data"]["horizontal_deg"]) > 1:
+            notes.append(f"lamp {lamp.id}: its IES C-planes are averaged in the bake (the model "
+                         "honours them)")
         rp = _effect(effects, "reflector", lamp.id)
         mirrored = rp is not None and lamp.reflector and lamp.reflector in ir.reflectors
         if lamp.kind != "point" and tef is None and not mirrored:

@@ -91,3 +91,10 @@ def test_point_lamps_stay_points(job):
     _, jb = job
     (em,) = [e for e in jb.emitters if e.id == "lamp.X"]
     assert isinstance(em, PointEmitters) and len(em.positions_mm) == 1
+
+
+def test_effects_without_a_cycles_backend_are_named_in_the_job(job):
+    ir, _ = job
+    jb = lighting_job(ir, "A", effects={"detector_cosine_error": {}}, environment=False, maps=False)
+    assert "not modelled by the bake" in jb.source["notes"]
+    assert "detector_cosine_error" in jb.source["notes"]
