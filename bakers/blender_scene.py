@@ -468,6 +468,11 @@ class BlenderScene:
         out = nb.new("ShaderNodeOutputMaterial")
         emis = nb.new("ShaderNodeEmission")
         emis.inputs["Strength"].default_value = 1.0   # colour = radiance
+        # a lamp's modulation: on a surface, Incoming points from the emitting point toward
+        # the receiver, as a light shader's does from the light
+        strength = self._profile_strength(nb, em.profile, em.aim, em.group)
+        if strength is not None:
+            nb.link(strength, emis.inputs["Strength"])
         if em.two_sided:
             nb.link(emis.outputs[0], out.inputs["Surface"])
             m.cycles.emission_sampling = "FRONT_AND_BACK"
@@ -479,6 +484,7 @@ class BlenderScene:
             nb.link(mix.outputs[0], out.inputs["Surface"])
             m.cycles.emission_sampling = "FRONT"
         obj.data.materials.append(m)
+        obj.visible_camera = em.visible_to_camera
         self._add_to_group(em.group, obj)
         sock = emis.inputs["Color"]
         self._colour_setters.append(lambda idx, s=sock, v=bands: setattr(s, "default_value", _rgb(v, idx)))

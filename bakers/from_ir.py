@@ -10,11 +10,15 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   ``surfaces='black'`` keeps the geometry but absorbs everything (direct light
   only, through diffuser and mirrors: the cross-check of the model without
   inter-reflection).
-* **lamps** that are on, at their dimming level: ``point_sources`` points
-  along a tube / over a panel, one for a bulb or point lamp, each with 1/N of
-  the lamp's peak spectral intensity (band means of the 1 nm spectrum, through
-  the lamp's filter when ``spectral_filter`` is on), true points as in the
-  analytic model.
+* **lamps** that are on, at their dimming level, as the surfaces they are
+  (:mod:`lbscene.engine.emitters`): emissive meshes — a tube's lateral
+  surface (and caps), a panel's rectangle, a bulb's sphere — of spectral
+  radiance ``I_ref / A`` (band means of the 1 nm spectrum, through the lamp's
+  filter when ``spectral_filter`` is on), modulated by the declared profile,
+  invisible to camera rays; point lamps as true points.  Lamps with a
+  tube-end falloff or a mirror image (reflector effect) are still
+  ``point_sources`` isotropic points × profile, the seed's approximation, not
+  their surface: the job's notes say so.
 * **effects** follow the booth's ``effects:`` (or ``effects=``) exactly as the
   analytic model reads them — angular profile, tube-end falloff, spectral
   filter, diffuser (a clear sheet with Fresnel angular transmittance and a
@@ -43,7 +47,7 @@ from typing import Iterable, Literal
 
 import numpy as np
 
-from .job import (BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
+from .job import (AreaEmitter, BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
                   GaussianProfile, IrradianceMapProduct, IrradiancePointsProduct, IsotropicProfile,
                   JobMaterial, JobMesh, MeasurementPoint, PointEmitters, Quality, RigidTransform,
                   TableProfile, TransmissiveSheet, Window, save_job)
@@ -97,7 +101,8 @@ def _profile(lamp, effects):
         return CosinePowerProfile(exponent=float(prof["exponent"]))
     if t == "ies":
         d = prof["data"]
-        cd = np.asarray(d["candela"], float).mean(axis=0)   # axial mean (as the model's IesShape)
+        # the bake's profiles are f(θ): an IES file's C-planes are averaged (lighting_job notes it)
+        cd = np.asarray(d["candela"], float).mean(axis=0)
         return TableProfile(theta_deg=tuple(float(x) for x in d["vertical_deg"]),
                             relative=tuple(float(x) for x in cd / cd.max()))
     if p.get("sigma_deg") is not None:
@@ -124,6 +129,85 @@ def _lamp_points(lamp) -> tuple[np.ndarray, np.ndarray, float]:
         pts = pos + np.outer(U.ravel() * lamp.length_mm, axis) + np.outer(W.ravel() * lamp.width_mm, wdir)
         return pts, U.ravel(), min(lamp.length_mm / nu, lamp.width_mm / nv)
     return pos[None, :], np.zeros(1), math.inf
+
+
+#: facets around a tube's or bulb's mesh
+MESH_FACETS = 64
+
+
+def _lamp_mesh(lamp) -> tuple[tuple, tuple, float]:
+    """Emitting surface of a tube, panel or bulb: (vertices mm, triangles facing out, area m²).
+
+    Polygonal meshes are scaled so their area equals the true surface's (a 64-gon
+    cylinder of the same radius would have 0.16 % less), so radiance × area = ``I_ref``'s
+    share exactly.
+    """
+    from lbscene.engine.emitters import emitter_from_lamp
+
+    em = emitter_from_lamp(lamp)
+    c, ax, aim = em.centre_mm, em.axis, em.aim
+    if lamp.kind == "panel":
+        v = em.corners_mm()[[0, 3, 2, 1]]          # counter-clockwise seen from the aim side
+        nrm = np.cross(v[1] - v[0], v[2] - v[0])
+        if nrm @ aim < 0:
+            v = v[::-1]
+        return (tuple(tuple(float(x) for x in p) for p in v), ((0, 1, 2), (0, 2, 3)),
+                em.projected_area_m2)
+    k = MESH_FACETS
+    helper = [0.0, 0.0, 1.0] if abs(ax[2]) < 0.9 else [1.0, 0.0, 0.0]
+    e1 = np.cross(ax, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(ax, e1)
+    phi = 2 * np.pi * np.arange(k) / k
+    ring = np.outer(np.cos(phi), e1) + np.outer(np.sin(phi), e2)
+    if lamp.kind == "tube":
+        r = lamp.radius_mm * (np.pi / k) / np.sin(np.pi / k)      # lateral area = 2πrℓ
+        h = ax * lamp.length_mm / 2
+        verts = list(c - h + r * ring) + list(c + h + r * ring)
+        tris = []
+        for i in range(k):
+            j = (i + 1) % k
+            tris += [(i, j, k + j), (i, k + j, k + i)]       # outward (right-hand rule)
+        if lamp.end_caps:
+            rc = lamp.radius_mm * np.sqrt((2 * np.pi / k) / np.sin(2 * np.pi / k))  # cap area πr²
+            a0, a1 = len(verts), len(verts) + 1
+            verts += [c - h, c + h]
+            b0, b1 = len(verts), len(verts) + k
+            verts += list(c - h + rc * ring) + list(c + h + rc * ring)
+            for i in range(k):
+                j = (i + 1) % k
+                tris += [(a0, b0 + j, b0 + i), (a1, b1 + i, b1 + j)]
+    else:                                                  # bulb: UV sphere of the same area
+        m = k // 2
+        th = np.pi * (np.arange(1, m)) / m
+        z = np.cross(e1, e2)
+        pts = [c - z]
+        for t_ in th:
+            pts += list(c + (-np.cos(t_)) * z + np.sin(t_) * ring)
+        pts.append(c + z)
+        unit = np.asarray(pts) - c                          # unit sphere, south pole first
+        tris = []
+        for i in range(k):
+            j = (i + 1) % k
+            tris.append((0, 1 + j, 1 + i))
+        for ring_i in range(m - 2):
+            o0, o1 = 1 + ring_i * k, 1 + (ring_i + 1) * k
+            for i in range(k):
+                j = (i + 1) % k
+                tris += [(o0 + i, o0 + j, o1 + j), (o0 + i, o1 + j, o1 + i)]
+        top = len(unit) - 1
+        o0 = 1 + (m - 2) * k
+        for i in range(k):
+            j = (i + 1) % k
+            tris.append((top, o0 + i, o0 + j))
+        tri = np.asarray(tris)
+        cr = np.cross(unit[tri[:, 1]] - unit[tri[:, 0]], unit[tri[:, 2]] - unit[tri[:, 0]])
+        unit_area = 0.5 * np.linalg.norm(cr, axis=1).sum()
+        r = lamp.radius_mm * np.sqrt(4 * np.pi / unit_area)
+        verts = list(c + r * unit)
+    # I_ref = L·A with A the emitter's reference projected area (tube 2rℓ, bulb πr²)
+    return (tuple(tuple(float(x) for x in p) for p in verts), tuple(tuple(int(i) for i in t) for t in tris),
+            em.projected_area_m2)
 
 
 def _mirror_window(lamp, refl) -> Window:
@@ -181,6 +265,14 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     g = ir.grid
     nb = g.count
     notes = []
+    from lbscene.engine.effects.physics import BACKENDS
+    from lbscene.engine.effects.registry import get_effect
+
+    # effects a bake does not model are named in the job, never silently dropped (instrument
+    # effects describe a meter's reading, not the light in the booth)
+    off = sorted(e for e in effects if "cycles" not in getattr(get_effect(e), "backends", BACKENDS))
+    if off:
+        notes.append(f"not modelled by the bake (its effect declares no 'cycles' backend): {', '.join(off)}")
 
     # ---- turning luminaire (illumination fixed to a rotating platform)
     pf = ir.platform
@@ -248,6 +340,21 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             w = end + (1.0 - end) * t
         per_point = g.integrate(spec) / len(pts)
         profile = _profile(lamp, effects)
+        if isinstance(profile, TableProfile) and len(lamp.profile["data"]["horizontal_deg"]) > 1:
+            notes.append(f"lamp {lamp.id}: its IES C-planes are averaged in the bake (the model "
+                         "honours them)")
+        rp = _effect(effects, "reflector", lamp.id)
+        mirrored = rp is not None and lamp.reflector and lamp.reflector in ir.reflectors
+        if lamp.kind != "point" and tef is None and not mirrored:
+            v, t, area_m2 = _lamp_mesh(lamp)
+            emitters.append(AreaEmitter(
+                id=_jid(f"lamp.{lamp.id}"), vertices_mm=v, triangles=t,
+                radiance_W_sr_m2_nm=tuple(float(x) for x in g.integrate(spec) / area_m2),
+                profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False))
+            continue
+        if lamp.kind in ("tube", "panel"):
+            notes.append(f"lamp {lamp.id}: {len(pts)} isotropic points × profile (tube-end falloff "
+                         "or mirror image), not its Lambertian surface: the model will differ")
         # true points (radius 0), as in the analytic model: exact inverse-square law, hard
         # shadows; camera rays do not see them (see the environment maps' direct product)
         common = dict(intensity_W_sr_nm=tuple(float(x) for x in per_point), profile=profile,
@@ -256,8 +363,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim,
                                       positions_mm=tuple(tuple(float(c) for c in p) for p in pts),
                                       **common))
-        rp = _effect(effects, "reflector", lamp.id)
-        if rp is not None and lamp.reflector and lamp.reflector in ir.reflectors:
+        if mirrored:
             refl = ir.reflectors[lamp.reflector]
             win = _mirror_window(lamp, refl)
             n = np.asarray(win.normal)

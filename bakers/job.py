@@ -303,6 +303,11 @@ class AreaEmitter(StrictModel):
     two_sided: bool = False
     filter: JobId | None = None
     group: str | None = None
+    #: angular modulation f(θ) of the radiance, θ from ``aim`` (a lamp's declared profile)
+    profile: Profile = IsotropicProfile()
+    aim: Vec3 = (0.0, 0.0, -1.0)
+    #: False for lamps: environment maps leave their straight light to the direct products
+    visible_to_camera: bool = True
 
 
 Emitter = Annotated[Union[PointEmitters, AreaEmitter], Field(discriminator="type")]

@@ -6,6 +6,7 @@ Layout of a build folder::
 
     manifest.json               what was built: booth, IR hash, files and their sha256
     scene.ir.json               the scene IR (canonical JSON)
+    ies/<LAMP>.ies              photometry of lamps with an IES profile (LM-63, from the IR)
     scene.usda                  USD stage, every lamp visible
     usd_plugin/                 the codeless lbscene schema (set PXR_PLUGINPATH_NAME to it)
     lighting/<NAME>/scene.usda  USD stage with only that configuration's lamps visible
@@ -93,6 +94,12 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
                          lightings=lightings)
     try:
         (tmp / "scene.ir.json").write_text(ir.to_json())
+        for lamp in ir.lamps:   # IES photometry travels with the build, written from the IR's table
+            if lamp.profile.get("type") == "ies":
+                from .profiles import ies_text
+
+                (tmp / "ies").mkdir(exist_ok=True)
+                (tmp / "ies" / f"{lamp.id}.ies").write_text(ies_text(lamp.profile["data"]))
         step("usd")
         write_stage(ir, tmp / "scene.usda")
         plug = tmp / "usd_plugin"

@@ -232,7 +232,8 @@ def _file_surfaces(doc: LoadedDocument) -> list[IRSurface]:
 # --------------------------------------------------------------------------- lamps
 
 def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
-    from .profiles import profile_shape, read_ies, solid_angle_weight_sr
+    from .emitters import emitter_from_lamp, projected_area_m2, solid_angle_weight_sr, unit_irradiance
+    from .profiles import profile_shape, read_ies
     from .spectra import evaluate_spectrum, luminous_efficacy_sum
 
     spd = evaluate_spectrum(lamp.spd, doc.resolve, "emission", display=f"lamp {lamp.id} spd")
@@ -247,31 +248,33 @@ def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
                            "lumens_per_lamp": data.lumens_per_lamp}
     shape = profile_shape(profile)
     lum_per_unit = luminous_efficacy_sum(spd)  # cd per (W·sr⁻¹·nm⁻¹ scale)
-    omega = solid_angle_weight_sr(shape)
     aim = np.asarray(_unit(lamp.aim))
+    axis = np.asarray(_unit(lamp.axis))
+    # Φ / I_ref of the lamp's own Lambertian shape times its modulation (emitters module)
+    omega = solid_angle_weight_sr(lamp.type, axis, aim, shape, radius_mm=lamp.radius_mm,
+                                  length_mm=lamp.length_mm, end_caps=lamp.end_caps)
+    area_m2 = projected_area_m2(lamp.type, lamp.length_mm, lamp.width_mm, lamp.radius_mm)
     out = lamp.output
     if out.type == "peak_intensity_cd":
         scale = out.value_cd / lum_per_unit
     elif out.type == "luminous_flux_lm":
         scale = out.value_lm / (lum_per_unit * omega)
+    elif out.type == "luminance_cd_m2":                 # I_ref = L_v · A
+        scale = out.value_cd_m2 * area_m2 / lum_per_unit
+    elif out.type == "radiance_W_sr_m2":
+        scale = out.value_W_sr_m2 * area_m2 / float(spd.sum())
     elif out.type == "peak_radiant_intensity_W_sr":
         scale = out.value_W_sr / float(spd.sum())      # Σ over the 1 nm grid = ∫ dλ
     elif out.type == "radiant_flux_W":
         scale = out.value_W / (float(spd.sum()) * omega)
-    else:  # illuminance at a point, base point-source model, upward receiver
+    else:  # illuminance at a point from the bare emitter (its shape and profile), upward receiver
         tmp = IRLamp(id=lamp.id, group=lamp.group or lamp.id, kind=lamp.type,
-                     position_mm=lamp.position_mm, axis=_unit(lamp.axis), aim=tuple(aim),
+                     position_mm=lamp.position_mm, axis=tuple(axis), aim=tuple(aim),
                      length_mm=lamp.length_mm, width_mm=lamp.width_mm, radius_mm=lamp.radius_mm,
                      spd=IRSpectrum(values_1nm=(0.0,), bands=(0.0,)), intensity_scale_W_sr_nm=1.0,
                      peak_luminous_intensity_cd=0.0, luminous_flux_lm=0.0, profile=profile,
-                     point_sources=lamp.point_sources)
-        pts = tmp.point_positions_mm()
-        d = np.asarray(out.point_mm, float)[None, :] - pts
-        dist = np.linalg.norm(d, axis=1)
-        u = d / dist[:, None]
-        cos_rx = np.clip(-u[:, 2], 0.0, None)
-        theta = np.arccos(np.clip(u @ aim, -1, 1))
-        geo = np.mean(shape(theta) * cos_rx / (dist * 1e-3) ** 2)
+                     point_sources=lamp.point_sources, end_caps=lamp.end_caps)
+        geo = unit_irradiance(emitter_from_lamp(tmp, shape), out.point_mm, (0.0, 0.0, 1.0))
         if geo <= 0:
             raise LbsceneUserError.single(
                 "LB104", f"lamp {lamp.id}: the output point receives no light from the lamp",
@@ -286,7 +289,7 @@ def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
         peak_luminous_intensity_cd=float(f"{scale * lum_per_unit:.10g}"),
         luminous_flux_lm=float(f"{scale * lum_per_unit * omega:.10g}"),
         profile=profile, point_sources=lamp.point_sources, filter=lamp.filter,
-        reflector=lamp.reflector, mount=lamp.mount)
+        reflector=lamp.reflector, mount=lamp.mount, end_caps=lamp.end_caps)
 
 
 # --------------------------------------------------------------------------- compile

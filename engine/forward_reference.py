@@ -74,6 +74,10 @@ def _profile_factor(src: dict, u: np.ndarray):
     if src["image_of"] is not None:
         nn = src["image_of"].n
         u = u - 2 * (u @ nn)[..., None] * nn
+    if getattr(src["prof"], "two_d", False):      # IES: γ from aim, C from the lamp's axis
+        from .emitters import ies_angles
+
+        return src["prof"](*ies_angles(u, src["axis"], src["aim"]))
     return src["prof"](np.arccos(np.clip(u @ src["aim"], -1, 1)))
 
 
@@ -184,28 +188,52 @@ class ReferenceEngine:
 
     # ------------------------------------------------------------------ sources
     def _lamp_samples(self, lamp, n):
-        """Positions (n,3), weights (n,) of jittered stratified samples of a lamp."""
-        c = np.asarray(lamp.position_mm, float)
-        ax = np.asarray(lamp.axis, float)
+        """Jittered stratified samples ON the lamp's emitting surface:
+        positions (n,3), Lambertian normals (n,3) or None (a point), weights (n,).
+
+        The intensity of sample ``i`` toward ``u`` is ``w_i · max(0, n_i·u) · I_ref``
+        (:mod:`lbscene.engine.emitters`): a tube is sampled over its lateral surface (and
+        caps), a panel over its area, a bulb over its sphere.  Nothing here shares the
+        forward model's axis quadrature or far-field law.
+        """
+        from .emitters import emitter_from_lamp
+
+        em = emitter_from_lamp(lamp)
         if lamp.kind == "tube":
-            s = (np.arange(n) + self.rng.random(n)) / n - 0.5
-            pos = c + np.outer(s * lamp.length_mm, ax)
-            w = np.full(n, 1.0 / n)
+            n_around = 16
+            n_along = max(1, n // n_around)
+            pos, nrm, w, s = em.surface_points(n_along, n_around, rng=self.rng)
+            # around-major order: the solvers thin samples with [::stride], which then keeps
+            # every azimuth (a random subset would let the share of down-facing normals vary)
+            o = np.arange(len(pos)).reshape(n_along, n_around).T.ravel()
+            pos, nrm, w, s = pos[o], nrm[o], w[o], s[o]
             fo = self.fx.get("tube_end_falloff")
             if fo is not None and (fo.lamps is None or lamp.id in fo.lamps):
                 dist_end = lamp.length_mm * (0.5 - np.abs(s))
                 ramp = np.minimum(dist_end / fo.falloff_length_mm, 1.0)
                 w = w * (fo.end_level + (1 - fo.end_level) * ramp)
-            return pos, w
-        if lamp.kind == "panel":
-            k = int(np.sqrt(n))
-            aim = np.asarray(lamp.aim, float)
-            wd = _norm(np.cross(aim, ax))
-            su = (np.repeat(np.arange(k), k) + self.rng.random(k * k)) / k - 0.5
-            sv = (np.tile(np.arange(k), k) + self.rng.random(k * k)) / k - 0.5
-            pos = c + np.outer(su * lamp.length_mm, ax) + np.outer(sv * lamp.width_mm, wd)
-            return pos, np.full(k * k, 1.0 / (k * k))
-        return c[None, :], np.ones(1)
+            caps = em.cap_points()
+            if caps is not None:
+                # each cap: a disc of radius r, sampled uniformly over its area
+                k = max(1, n // 64)
+                cp, cn, cw = [], [], []
+                for c0, nn, wc in zip(*caps[:3]):
+                    rr = lamp.radius_mm * np.sqrt((np.arange(k) + self.rng.random(k)) / k)
+                    ph = 2 * np.pi * self.rng.random(k)
+                    e1 = _norm(np.cross(nn, [0.0, 0.0, 1.0] if abs(nn[2]) < 0.9 else [1.0, 0.0, 0.0]))
+                    e2 = np.cross(nn, e1)
+                    cp.append(c0 + np.outer(rr * np.cos(ph), e1) + np.outer(rr * np.sin(ph), e2))
+                    cn.append(np.tile(nn, (k, 1)))
+                    cw.append(np.full(k, wc / k))
+                pos, nrm, w = np.r_[pos, *cp], np.r_[nrm, *cn], np.r_[w, *cw]
+            return pos, nrm, w
+        if lamp.kind == "panel" or (lamp.kind == "bulb" and lamp.radius_mm > 0):
+            # a sphere is smooth and convex: fewer samples reach the same noise as a tube's
+            k = n if lamp.kind == "panel" else max(64, n // 16)
+            pos, nrm, w, _ = em.surface_points(k, 1, rng=self.rng)
+            o = self.rng.permutation(len(pos))
+            return pos[o], nrm[o], w[o]
+        return np.asarray(lamp.position_mm, float)[None, :], None, np.ones(1)
 
     def _mirror(self, lamp):
         refl = self.ir.reflectors[lamp.reflector]
@@ -246,7 +274,7 @@ class ReferenceEngine:
         for lamp_id in self.ir.lighting[self.lighting].lamps:
             lamp = self.ir.lamp(lamp_id)
             level = float(self.ir.lighting[self.lighting].dimming.get(lamp_id, 1.0))
-            pos, w = self._lamp_samples(lamp, self.n_samples if lamp.kind in ("tube", "panel") else 1)
+            pos, nrm, w = self._lamp_samples(lamp, self.n_samples if lamp.kind != "point" else 1)
             prof = None
             if ap is not None and (ap.lamps is None or lamp.id in ap.lamps):
                 sig = self.lamp_overrides.get(lamp.id, {}).get("sigma_deg")
@@ -269,11 +297,14 @@ class ReferenceEngine:
                 # image: reflect every sample through the mirror plane
                 h = (pos - rect.c) @ rect.n
                 ipos = pos - 2 * h[:, None] * rect.n[None, :]
+                inrm = None if nrm is None else nrm - 2 * (nrm @ rect.n)[:, None] * rect.n[None, :]
                 R = np.clip(refl.reflectance.array_1nm * rf.reflectance_scale, 0, 1)
-                out.append(dict(group=lamp.group, lamp=lamp.id, pos=ipos, w=w, aim=np.asarray(lamp.aim),
+                out.append(dict(group=lamp.group, lamp=lamp.id, pos=ipos, nrm=inrm, w=w,
+                                aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
                                 prof=prof, spectrum=spec * R, image_of=rect, blockers=blockers,
                                 mirror=None))
-            out.append(dict(group=lamp.group, lamp=lamp.id, pos=pos, w=w, aim=np.asarray(lamp.aim),
+            out.append(dict(group=lamp.group, lamp=lamp.id, pos=pos, nrm=nrm, w=w,
+                            aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
                             prof=prof, spectrum=spec, image_of=None, blockers=blockers, mirror=mirror))
         self._sources = out
         return out
@@ -311,7 +342,8 @@ class ReferenceEngine:
         out = []
         for src in self.sources():
             if stride > 1 and len(src["pos"]) > stride:
-                src = dict(src, pos=src["pos"][::stride], w=src["w"][::stride] * stride)
+                src = dict(src, pos=src["pos"][::stride], w=src["w"][::stride] * stride,
+                           nrm=None if src["nrm"] is None else src["nrm"][::stride])
             geo_t = np.zeros(len(P))
             geo_n = np.zeros(len(P))
             for a in range(0, len(P), chunk):
@@ -321,6 +353,8 @@ class ReferenceEngine:
                 u = d_ / r[..., None]
                 cos_r = np.maximum(-(u * n[:, None, :]).sum(-1), 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
+                if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
+                    val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
                 val = val * _profile_factor(src, u)
                 if m.any():
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
@@ -394,13 +428,16 @@ class ReferenceEngine:
         try:
             for src in self.sources():
                 st = max(1, len(src["pos"]) // 500)
-                src = dict(src, pos=src["pos"][::st], w=src["w"][::st] * st)
+                src = dict(src, pos=src["pos"][::st], w=src["w"][::st] * st,
+                           nrm=None if src["nrm"] is None else src["nrm"][::st])
                 d_ = pts[:, None, :] + [0, 0, 1e-3] - src["pos"][None]
                 r = np.linalg.norm(d_, axis=2)
                 u = d_ / r[..., None]
                 cos_r = np.maximum(-u[..., 2], 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
                 val = val * _fresnel_plate(cos_r, self.ir.diffuser.ior) / t0
+                if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
+                    val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
                 val = val * _profile_factor(src, u)
                 top = pts + [0, 0, 1e-3]
                 if src["image_of"] is not None:

@@ -14,10 +14,11 @@ Conventions
 * ``*_1nm`` arrays are sampled on
   :data:`~lbscene.engine.spectral.REFERENCE_WAVELENGTHS_NM`; ``*_bands`` are
   band means on the IR's :class:`~lbscene.engine.spectral.BandGrid`.
-* A lamp's emission: its spectral radiant intensity at θ = 0 (along ``aim``),
-  of the *whole* lamp, is ``intensity_scale_W_sr_nm × spd_1nm`` in
-  W·sr⁻¹·nm⁻¹ (bare lamp, before filter/reflector/diffuser).  Point-source
-  models split it evenly over ``point_sources`` points.
+* A lamp's emission: its reference spectral radiant intensity, of the *whole*
+  lamp, is ``intensity_scale_W_sr_nm × spd_1nm`` in W·sr⁻¹·nm⁻¹ (bare lamp,
+  before filter/reflector/diffuser): a tube's perpendicular to its axis, a
+  panel's along its normal, a bulb's or point's in any direction.  What each
+  lamp type emits around it is :mod:`lbscene.engine.emitters`.
 
 ``IR_VERSION`` changes whenever the serialised form changes meaning.
 """
@@ -51,7 +52,7 @@ __all__ = [
     "canonical_json",
 ]
 
-IR_VERSION = 2                          # 2: platform pivot_mm
+IR_VERSION = 3                          # 2: platform pivot_mm; 3: Lambertian emitters, end_caps
 
 Vec3 = tuple[float, float, float]
 
@@ -141,6 +142,7 @@ class IRLamp(_IR):
     filter: str | None = None
     reflector: str | None = None
     mount: str = "booth"
+    end_caps: bool = False
 
     @property
     def peak_intensity_1nm(self) -> np.ndarray:
@@ -317,20 +319,16 @@ class SceneIR(_IR):
         inter-reflection, diffuser or occlusion.  Use the forward model
         (:mod:`lbscene.engine.forward`) for predictions with effects.
         """
+        from .emitters import emitter_from_lamp, unit_irradiance
         from .profiles import profile_shape
 
         p = np.asarray(point_mm if point_mm is not None else self.sample_position_mm, float)
         total = np.zeros(len(self.lamps[0].spd.values_1nm))
         use_profile = "angular_profile" in self.effects
         for lamp, level in self.lamps_on(lighting):
-            pts = lamp.point_positions_mm()
-            d = p[None, :] - pts                          # lamp → receiver, mm
-            dist = np.linalg.norm(d, axis=1)
-            u = d / dist[:, None]
-            cos_rx = np.clip(-u[:, 2], 0.0, None)         # receiver normal +z
-            theta = np.arccos(np.clip(u @ np.asarray(lamp.aim), -1.0, 1.0))
-            f = profile_shape(lamp.profile)(theta) if use_profile else 1.0
-            geo = np.sum(f * cos_rx / (dist * 1e-3) ** 2) / len(pts)
+            shape = profile_shape(lamp.profile) if use_profile else None
+            geo = unit_irradiance(emitter_from_lamp(lamp, shape), p, (0.0, 0.0, 1.0),
+                                  n_along=400, n_around=16)
             total += level * geo * self.lamp_emission_1nm(lamp)
         return total
 

@@ -185,6 +185,16 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
             E("LB202", f"lamp '{lp.id}' uses undefined reflector '{lp.reflector}'", "lamps", i,
               "reflector", value=repr(lp.reflector),
               expected=f"one of {sorted(booth.reflectors) or 'the reflectors: section'}")
+    for i, lp in enumerate(booth.lamps):
+        # IES photometry is read here too, so validate-config reports a bad file at its line
+        if lp.profile.type == "ies":
+            from .diagnostics import LbsceneUserError as _UserError
+            from .profiles import read_ies
+
+            try:
+                read_ies(doc.resolve(lp.profile.path), lp.profile.path)
+            except _UserError as exc:
+                diags.extend(exc.diagnostics)
     for role, mat in booth.surfaces.model_dump().items():
         if mat is not None and mat not in mats:
             E("LB202", f"surface '{role}' uses undefined material '{mat}'", "surfaces", role,

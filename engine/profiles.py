@@ -21,6 +21,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +30,13 @@ from .diagnostics import LbsceneUserError
 from .yamlio import read_text_bounded
 
 __all__ = ["IsotropicShape", "GaussianShape", "CosinePowerShape", "IesShape", "profile_shape",
-           "solid_angle_weight_sr", "read_ies", "IesData"]
+           "solid_angle_weight_sr", "read_ies", "IesData", "ies_text"]
 
 
 @dataclass(frozen=True)
 class IsotropicShape:
+    isotropic = True
+
     def __call__(self, theta_rad, phi_rad=None):
         return np.ones_like(np.asarray(theta_rad, float))
 
@@ -66,28 +69,55 @@ class IesData:
 
 @dataclass(frozen=True, eq=False)
 class IesShape:
+    """Candela table of an LM-63 type C file, normalised by its peak: f(γ, C).
+
+    Bilinear in C and γ over the file's planes, unfolded by the file's symmetry
+    (last horizontal angle 0: rotational; 90: quadrant; 180: bilateral about the
+    C0–C180 plane; 360 or a full set without its 360° plane: none).  γ = 0 along
+    the lamp's ``aim``, C = 0 along its ``axis`` (see :mod:`lbscene.engine.emitters`);
+    0 outside the file's vertical range.
+    """
+
     data: IesData
+    two_d = True
+
+    @cached_property
+    def _table(self):
+        d = self.data
+        h = np.asarray(d.horizontal_deg, float)
+        cd = np.asarray(d.candela, float)
+        if h.size == 1:
+            return None, cd[0]
+        hmax = h[-1]
+        if hmax <= 90.0:                     # quadrant symmetry: mirror to 0–180, then 0–360
+            h, cd = np.r_[h, 180.0 - h[-2::-1]], np.r_[cd, cd[-2::-1]]
+            hmax = 180.0
+        if hmax <= 180.0:                    # bilateral symmetry about C0–C180
+            h, cd = np.r_[h, 360.0 - h[-2::-1]], np.r_[cd, cd[-2::-1]]
+        if h[-1] < 360.0:                    # full set written without its 360° plane
+            h, cd = np.r_[h, 360.0], np.r_[cd, cd[:1]]
+        return h, cd
 
     def __call__(self, theta_rad, phi_rad=None):
         d = self.data
         t = np.degrees(np.asarray(theta_rad, float))
-        peak = d.candela.max()
-        if d.horizontal_deg.size == 1 or phi_rad is None:
-            prof = d.candela.mean(axis=0)
-            return np.interp(t, d.vertical_deg, prof, right=0.0) / peak
-        ph = np.degrees(np.asarray(phi_rad, float)) % 360.0
-        hmax = d.horizontal_deg[-1]
-        if hmax <= 90.0:  # quadrant symmetry
-            ph = np.where(ph > 180, 360 - ph, ph)
-            ph = np.where(ph > 90, 180 - ph, ph)
-        elif hmax <= 180.0:  # bilateral symmetry
-            ph = np.where(ph > 180, 360 - ph, ph)
-        from scipy.interpolate import RegularGridInterpolator
-
-        interp = RegularGridInterpolator((d.horizontal_deg, d.vertical_deg), d.candela,
-                                         bounds_error=False, fill_value=0.0)
-        pts = np.stack(np.broadcast_arrays(ph, t), axis=-1)
-        return interp(pts) / peak
+        v = np.asarray(d.vertical_deg, float)
+        peak = float(np.max(d.candela))
+        h, cd = self._table
+        inside = (t >= v[0] - 1e-9) & (t <= v[-1] + 1e-9)
+        if h is None:
+            return np.where(inside, np.interp(t, v, cd), 0.0) / peak
+        if phi_rad is None:
+            raise ValueError("this IES file is not rotationally symmetric: f needs the C angle")
+        c = np.degrees(np.asarray(phi_rad, float)) % 360.0
+        t, c = np.broadcast_arrays(t, c)
+        j = np.clip(np.searchsorted(h, c, side="right") - 1, 0, h.size - 2)
+        wc = np.clip((c - h[j]) / (h[j + 1] - h[j]), 0.0, 1.0)
+        k = np.clip(np.searchsorted(v, t, side="right") - 1, 0, v.size - 2)
+        wv = np.clip((t - v[k]) / (v[k + 1] - v[k]), 0.0, 1.0)
+        val = ((1 - wc) * ((1 - wv) * cd[j, k] + wv * cd[j, k + 1])
+               + wc * ((1 - wv) * cd[j + 1, k] + wv * cd[j + 1, k + 1]))
+        return np.where(inside, val, 0.0) / peak
 
 
 def read_ies(path: Path, display: str) -> IesData:
@@ -115,7 +145,32 @@ def read_ies(path: Path, display: str) -> IesData:
     if cd.size != nv * nh or nv < 2 or np.any(np.diff(v) <= 0) or cd.max() <= 0:
         raise LbsceneUserError.single("LB203", "malformed IES candela table", display,
                                       expected="increasing vertical angles and positive candela")
+    if v[0] < 0 or v[-1] > 180:
+        raise LbsceneUserError.single("LB203", f"IES vertical angles {v[0]:g}..{v[-1]:g} outside 0..180°",
+                                      display, expected="type C vertical angles within 0..180°")
+    full = h[-1] > 180.0 and h[-1] <= 360.0       # full set, with or without its 360° plane
+    if h[0] != 0 or np.any(np.diff(h) <= 0) or not (nh == 1 or h[-1] in (90.0, 180.0) or full):
+        raise LbsceneUserError.single(
+            "LB203", f"IES horizontal angles {h[0]:g}..{h[-1]:g} are not a type C set", display,
+            expected="horizontal angles increasing from 0 and ending at 0 (rotational), 90 "
+                     "(quadrant), 180 (bilateral) or up to 360° (full; the 360° plane may be left out)")
     return IesData(v, h, cd, lm_per_lamp)
+
+
+def ies_text(data: dict) -> str:
+    """An IES LM-63-2002 file (type C, TILT=NONE, multiplier 1) of an IR profile's ``data`` table.
+
+    Builds carry the lamp's photometry as a file (``ies/<lamp id>.ies``) for other tools;
+    the numbers are the IR's, so :func:`read_ies` gives the same table back.
+    """
+    v = [float(x) for x in data["vertical_deg"]]
+    h = [float(x) for x in data["horizontal_deg"]]
+    cd = [[float(x) for x in row] for row in data["candela"]]
+    fmt = lambda xs: " ".join(f"{x:.10g}" for x in xs)  # noqa: E731
+    lines = ["IESNA:LM-63-2002", "[MANUFAC] written by lbscene from the scene IR", "TILT=NONE",
+             f"1 {float(data['lumens_per_lamp']):.10g} 1 {len(v)} {len(h)} 1 2 0 0 0", "1 1 0",
+             fmt(v), fmt(h)] + [fmt(row) for row in cd]
+    return "\n".join(lines) + "\n"
 
 
 def profile_shape(profile, resolve=None):
@@ -139,7 +194,11 @@ def profile_shape(profile, resolve=None):
 
 
 def solid_angle_weight_sr(shape, n: int = 2049) -> float:
-    """∫ f(θ) dΩ over the sphere (axially averaged): flux = I0 · this."""
+    """∫ f dΩ over the sphere (sr) of a modulation alone: flux of a point = I0 · this."""
+    if getattr(shape, "two_d", False):
+        from .emitters import solid_angle_weight_sr as full
+
+        return full("point", (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), shape)
     theta = np.linspace(0.0, np.pi, n)
     f = np.asarray(shape(theta), float)
     return float(2.0 * np.pi * np.trapz(f * np.sin(theta), theta))

@@ -231,9 +231,28 @@ def _profile_samples(ir, lamp) -> list[float]:
     theta = np.linspace(0.0, np.pi, PROFILE_SAMPLES)
     if "angular_profile" not in ir.effects:
         return [1.0] * PROFILE_SAMPLES
-    from lbscene.engine.profiles import profile_shape
+    from lbscene.engine.effects.physics import effect_params
+    from lbscene.engine.effects.registry import get_effect
+    from lbscene.engine.profiles import GaussianShape, profile_shape
 
-    return _rv(np.clip(profile_shape(lamp.profile)(theta), 0.0, None))
+    # as the effect reads its parameters (engine/effects/catalog.py): its lamp selection, the
+    # declared profile, else its σ for lamps that declare none
+    p = effect_params(get_effect("angular_profile"), ir.effects["angular_profile"])
+    if p.lamps is not None and lamp.id not in p.lamps:
+        return [1.0] * PROFILE_SAMPLES
+    if lamp.profile.get("type") != "isotropic":
+        shape = profile_shape(lamp.profile)
+    elif p.sigma_deg is not None:
+        shape = GaussianShape(float(p.sigma_deg))
+    else:
+        return [1.0] * PROFILE_SAMPLES
+    if getattr(shape, "two_d", False):
+        # the highlight shader takes f(θ) only: an IES file's C-planes are averaged here (the
+        # diffuse light, from the forward model or the bake, honours them)
+        c = np.radians(np.arange(0.0, 360.0, 5.0))
+        T, C = np.meshgrid(theta, c, indexing="ij")
+        return _rv(np.clip(shape(T, C).mean(axis=1), 0.0, None))
+    return _rv(np.clip(shape(theta), 0.0, None))
 
 
 def _emitters(ir, lighting: str) -> list[dict]:
@@ -244,10 +263,20 @@ def _emitters(ir, lighting: str) -> list[dict]:
     trans = np.ones(grid.count)
     diffuser = None
     if ir.diffuser is not None and "diffuser" in ir.effects:
+        from lbscene.engine.effects.physics import effect_params
+        from lbscene.engine.effects.registry import get_effect
+
+        # the effect's parameters as the forward model reads them: transmittance_scale and the
+        # diffuse_fraction override (the straight part is what the highlight sees)
+        dp = effect_params(get_effect("diffuser"), ir.effects["diffuser"])
         diffuser = ir.diffuser
-        trans = grid.integrate(diffuser.transmittance.array_1nm)
-        if diffuser.scattering.get("type") == "lambertian":
-            trans = trans * (1.0 - float(diffuser.scattering.get("diffuse_fraction", 0.0)))
+        trans = grid.integrate(np.clip(diffuser.transmittance.array_1nm * dp.transmittance_scale,
+                                       0.0, 1.0))
+        fd = dp.diffuse_fraction
+        if fd is None:
+            fd = (float(diffuser.scattering.get("diffuse_fraction", 0.0))
+                  if diffuser.scattering.get("type") == "lambertian" else 0.0)
+        trans = trans * (1.0 - float(fd))
     for lamp, level in ir.lamps_on(lighting):
         emission = grid.integrate(ir.lamp_emission_1nm(lamp)) * level
         below = diffuser is not None and lamp.position_mm[2] > diffuser.z_mm

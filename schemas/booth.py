@@ -172,7 +172,8 @@ AngularProfile = Annotated[
 
 
 class LuminousIntensityOutput(StrictModel):
-    """Peak luminous intensity of the whole lamp along its aim direction."""
+    """Reference luminous intensity of the whole lamp: a tube's perpendicular to its axis, a panel's
+    along its normal, a bulb's or point's in any direction (along `aim` where a profile modulates it)."""
 
     type: Literal["peak_intensity_cd"]
     value_cd: float = Field(gt=0, le=1e7)
@@ -207,9 +208,27 @@ class RadiantFluxOutput(StrictModel):
     value_W: float = Field(gt=0, le=1e5)
 
 
+class LuminanceOutput(StrictModel):
+    """Luminance of the emitting surface (tube, panel, bulb): ``I_ref = L_v·A``.
+
+    ``A`` = 2·r·ℓ (tube: intensity perpendicular to its axis), length·width (panel: along its
+    normal), π·r² (bulb: every direction).
+    """
+
+    type: Literal["luminance_cd_m2"]
+    value_cd_m2: float = Field(gt=0, le=1e9)
+
+
+class RadianceOutput(StrictModel):
+    """Radiance (360–830 nm) of the emitting surface (tube, panel, bulb): for UV sources."""
+
+    type: Literal["radiance_W_sr_m2"]
+    value_W_sr_m2: float = Field(gt=0, le=1e7)
+
+
 LampOutput = Annotated[
     Union[LuminousIntensityOutput, LuminousFluxOutput, IlluminanceOutput, RadiantIntensityOutput,
-          RadiantFluxOutput],
+          RadiantFluxOutput, LuminanceOutput, RadianceOutput],
     Field(discriminator="type"),
 ]
 
@@ -223,14 +242,20 @@ class Lamp(StrictModel):
         None, description="Lamps of one group share fitted parameters (default: the lamp's id).")
     position_mm: Vec3_mm = Field(description="Centre of the lamp.")
     axis: Direction = Field((1.0, 0.0, 0.0), description="Tube axis / panel first edge direction.")
-    aim: Direction = Field((0.0, 0.0, -1.0), description="Direction of θ = 0 of the angular profile.")
+    aim: Direction = Field((0.0, 0.0, -1.0), description="Direction of θ = 0 of the angular profile; a panel's "
+                                                               "emitting normal.")
     length_mm: float = Field(0.0, ge=0, le=5000, description="Tube length or panel size along `axis`.")
     width_mm: float = Field(0.0, ge=0, le=5000, description="Panel size across `axis`.")
     radius_mm: float = Field(0.0, ge=0, le=500, description="Tube or bulb radius.")
+    end_caps: bool = Field(False, description="Tube: its flat ends emit too, with the lateral "
+                                              "surface's radiance (default: only the lateral surface).")
     spd: SpectrumSpec = Field(description="Relative spectral power distribution (shape only).")
     output: LampOutput = Field(description="Absolute level of the lamp.")
     profile: AngularProfile = Field(IsotropicProfile(type="isotropic"),
-                                    description="Angular intensity profile around `aim`.")
+                                    description="Angular modulation around `aim` of the lamp's own "
+                                                "Lambertian emission (tube: sin of the angle to its "
+                                                "axis; panel: cos from its normal; bulb, point: "
+                                                "uniform). IES: γ = 0 along `aim`, C = 0 along `axis`.")
     point_sources: int = Field(100, ge=1, le=10000,
                                description="Point sources approximating the lamp (seed: N = 100).")
     filter: Identifier | None = Field(None, description="Filter (from `filters:`) in front of the lamp.")
@@ -248,6 +273,11 @@ class Lamp(StrictModel):
             raise ValueError("a panel needs length_mm > 0 and width_mm > 0")
         if self.type == "bulb" and self.radius_mm <= 0:
             raise ValueError("a bulb needs radius_mm > 0")
+        if self.type == "point" and self.output.type in ("luminance_cd_m2", "radiance_W_sr_m2"):
+            raise ValueError(f"a point has no surface: give its output as an intensity or flux, "
+                             f"not {self.output.type}")
+        if self.end_caps and self.type != "tube":
+            raise ValueError("end_caps applies to tubes only")
         for name in ("axis", "aim"):
             v = getattr(self, name)
             if sum(c * c for c in v) < 1e-12:

@@ -357,6 +357,7 @@ class TubeEndFalloffEffect(PhysicalEffect):
     order = 20
     fit_parameters = {"end_level": (0.0, 1.0), "falloff_length_mm": (5.0, 1000.0)}
     fit_initial = {"end_level": 0.5, "falloff_length_mm": 100.0}
+    helpers = ("weight",)
 
     class Params(_LampSelection):
         falloff_length_mm: float = Field(100.0, gt=0, le=2000,
@@ -435,6 +436,8 @@ class DetectorCosineErrorEffect(PhysicalEffect):
     summary = "The illuminance meter's imperfect cosine response (f2 error)."
     kind = "instrument"
     order = 200
+    # a meter's response: Cycles' sensors and the realtime view are ideal cosine receivers
+    backends = frozenset({"forward", "reference"})
     fit_parameters = {"exponent": (0.5, 2.0)}
     fit_initial = {"exponent": 1.05}
 

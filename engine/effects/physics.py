@@ -40,8 +40,9 @@ Diagnosis metadata (class attributes):
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, ClassVar
+from typing import Any, Callable, ClassVar, Protocol
 
 import numpy as np
 
@@ -49,6 +50,10 @@ from .registry import Effect
 
 __all__ = [
     "PhysicalEffect",
+    "EffectHooks",
+    "HOOKS",
+    "BACKENDS",
+    "check_effect_class",
     "EmitterSet",
     "PathChannel",
     "LambertianSource",
@@ -59,11 +64,17 @@ __all__ = [
 
 @dataclass(frozen=True)
 class EmitterSet:
-    """Point emitters standing for one lamp (or an image of it).
+    """Point emitters standing for one lamp (or an image of it): a quadrature of the lamp's
+    :class:`~lbscene.engine.emitters.Emitter`.
 
-    The spectral radiant intensity of point ``i`` toward a direction at
-    angle θ from ``aim`` is ``weights[i] · shape(θ) · spectrum_1nm``
-    (W·sr⁻¹·nm⁻¹); ``weights`` sum to 1 for an unmodified lamp.
+    The spectral radiant intensity of point ``i`` toward a unit direction ``u``
+    (after ``direction_map``) is ``weights[i] · b_i(u) · f(u) · spectrum_1nm``
+    (W·sr⁻¹·nm⁻¹) with ``f`` the modulation ``shape`` (θ from ``aim``; IES: γ, C
+    in the frame of ``lamp_axis``) and ``b_i`` the emitter's own law:
+    ``max(0, normals[i]·u)`` for points on a Lambertian surface, ``sin`` of the
+    angle to ``line_axis`` for a tube's line quadrature (the far field of a
+    Lambertian cylinder slice; with ``line_radius_mm`` > 0 the forward model
+    integrates the slice's visible arc at each receiver instead), 1 otherwise.
     """
 
     lamp_id: str
@@ -83,6 +94,14 @@ class EmitterSet:
     #: half of the piece of lamp each point stands for (tubes), mm vector; None for points
     half_step: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    #: (N, 3) outward normals of surface points (Lambertian law); None: no surface law
+    normals: np.ndarray | None = None
+    #: tube axis of a line quadrature (sin law); None: none
+    line_axis: np.ndarray | None = None
+    #: tube radius of a line quadrature: > 0 integrates each slice's visible arc exactly
+    line_radius_mm: float = 0.0
+    #: the lamp's axis: C = 0 of a two-dimensional (IES) modulation
+    lamp_axis: np.ndarray | None = None
 
     def with_(self, **kw) -> "EmitterSet":
         return replace(self, **kw)
@@ -144,14 +163,53 @@ class ForwardContext:
         return hit
 
     def fraction_hitting(self, es: "EmitterSet", rx: np.ndarray, rect) -> np.ndarray:
-        """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`."""
+        """Memoised :func:`~lbscene.engine.forward_geometry.segment_fraction_hitting`.
+
+        A tube slice of radius r > 0 is not its axis: its light toward a receiver leaves
+        the arc it sees, so for a rectangle within :data:`TUBE_RING_REACH` radii the fraction
+        is averaged over :data:`TUBE_RING` lines on the tube's surface, each weighted by its
+        Lambertian ``max(0, n·u)`` toward the receiver.
+        """
         from lbscene.engine.forward_geometry import segment_fraction_hitting
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
         hole = rect.hole_half if rect.hole_half is not None else (-1.0, -1.0)
-        return self.memo("hit", (es.points_mm, half, rx, rect.centre, rect.normal, rect.u,
-                                 rect.half, hole),
-                         lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
+        key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half, hole)
+        # the tube's width only shifts a shadow edge noticeably when the rectangle is within a
+        # few radii of it (apertures, slots); farther away its axis stands for it
+        close = (es.line_axis is not None and es.line_radius_mm > 0 and
+                 abs(float((es.points_mm.mean(axis=0) - rect.centre) @ rect.normal))
+                 < TUBE_RING_REACH * es.line_radius_mm)
+        if not close:
+            return self.memo("hit", key,
+                             lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
+
+        def ring():
+            a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+            a = a / np.linalg.norm(a)
+            e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(a, e1)
+            d = rx[:, None, :] - es.points_mm[None, :, :]
+            num = np.zeros(d.shape[:2])
+            den = np.zeros(d.shape[:2])
+            for k in range(TUBE_RING):
+                phi = 2.0 * np.pi * (k + 0.5) / TUBE_RING
+                nk = np.cos(phi) * e1 + np.sin(phi) * e2
+                w = np.clip(d @ nk, 0.0, None)            # ∝ max(0, n·u) (common 1/|d| cancels)
+                f = segment_fraction_hitting(es.points_mm + es.line_radius_mm * nk, es.half_step,
+                                             rx, rect)
+                num += w * f
+                den += w
+            return np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+
+        return self.memo("hit", key + (np.asarray([es.line_radius_mm]),), ring)
+
+
+#: lines around a tube's surface over which occlusion is averaged
+TUBE_RING = 8
+#: ... for rectangles closer to the tube than this many radii
+TUBE_RING_REACH = 8.0
 
 
 def effect_params(cls, params: dict | None):
@@ -169,8 +227,85 @@ def effect_params(cls, params: dict | None):
 _PARAMS_CACHE: dict = {}
 
 
+class EffectHooks(Protocol):
+    """Every hook an effect may define (all optional; see the module docstring)."""
+
+    @staticmethod
+    def modify_emitters(ctx: ForwardContext, p: Any, lamp: Any, es: EmitterSet) -> EmitterSet: ...
+
+    @staticmethod
+    def extra_emitters(ctx: ForwardContext, p: Any, lamp: Any, es: EmitterSet) -> list[EmitterSet]: ...
+
+    @staticmethod
+    def path_factors(ctx: ForwardContext, p: Any, es: EmitterSet,
+                     rx_points: np.ndarray) -> list[PathChannel] | None: ...
+
+    @staticmethod
+    def secondary_sources(ctx: ForwardContext, p: Any, direct: Callable) -> list[LambertianSource]: ...
+
+    @staticmethod
+    def receiver_response(ctx: ForwardContext, p: Any, cos_incidence: np.ndarray) -> np.ndarray: ...
+
+    @staticmethod
+    def global_transport(ctx: ForwardContext, p: Any, model: Any) -> Any: ...
+
+
+#: hook name → number of arguments (after the class, for classmethods)
+HOOKS: dict[str, int] = {
+    name: len(inspect.signature(getattr(EffectHooks, name)).parameters)
+    for name in ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources",
+                 "receiver_response", "global_transport")
+}
+#: backends that consume effects: the analytic forward model, the Monte Carlo reference engine,
+#: Cycles bake jobs, the realtime render graph
+BACKENDS = frozenset({"forward", "reference", "cycles", "realtime"})
+#: public class members of an effect that are not hooks
+_METADATA = frozenset({"Params", "applicable", "fit_parameters_for", "describe_params",
+                       "diagnosis_params", "refit_cost_s"})
+
+
+def check_effect_class(cls) -> None:
+    """Raise ``TypeError`` unless ``cls`` keeps to the hook interface.
+
+    Every public callable it defines must be a hook of :class:`EffectHooks` with the hook's
+    number of arguments, a metadata member, or named in its ``helpers``; ``backends`` must be
+    a subset of :data:`BACKENDS` that includes ``'forward'``.
+    """
+    helpers = set(getattr(cls, "helpers", ()))
+    for klass in cls.__mro__:
+        if klass in (PhysicalEffect, Effect, object):
+            continue
+        for name, raw in vars(klass).items():
+            if name.startswith("_") or name in _METADATA or name in helpers:
+                continue
+            fn = raw.__func__ if isinstance(raw, (staticmethod, classmethod)) else raw
+            if not callable(fn) or isinstance(fn, type):
+                continue
+            if name not in HOOKS:
+                raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: {name!r} is not a hook "
+                                f"(hooks: {', '.join(sorted(HOOKS))}); list helper methods in "
+                                f"`helpers`")
+            n = len(inspect.signature(fn).parameters) - (1 if isinstance(raw, classmethod) else 0)
+            if n != HOOKS[name]:
+                raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: hook {name} takes "
+                                f"{n} arguments, the interface {HOOKS[name]}")
+    backends = getattr(cls, "backends", BACKENDS)
+    if not set(backends) <= BACKENDS or "forward" not in backends:
+        raise TypeError(f"effect {getattr(cls, 'id', cls.__name__)!r}: backends {sorted(backends)} "
+                        f"must include 'forward' and be among {sorted(BACKENDS)}")
+
+
 class PhysicalEffect(Effect):
-    """Base class of effects with forward-model physics (see the module docstring)."""
+    """Base class of effects with forward-model physics (see the module docstring).
+
+    Hooks are the methods of :class:`EffectHooks`; registering a class that defines any other
+    public method (not listed in ``helpers``) is an error.
+    """
+
+    #: backends that model this effect (see :data:`BACKENDS`)
+    backends: ClassVar[frozenset[str]] = BACKENDS
+    #: public methods that are not hooks
+    helpers: ClassVar[tuple[str, ...]] = ()
 
     #: evaluation order among enabled effects (lower first)
     order: ClassVar[int] = 100

@@ -52,6 +52,10 @@ def register_effect(cls: type[Effect]) -> type[Effect]:
     eid = getattr(cls, "id", None)
     if not eid or not isinstance(eid, str):
         raise TypeError(f"{cls.__name__} needs a string class attribute 'id'")
+    from .physics import PhysicalEffect, check_effect_class
+
+    if issubclass(cls, PhysicalEffect):
+        check_effect_class(cls)        # unknown hook names, wrong arities, unknown backends
     if eid in _REGISTRY and _REGISTRY[eid] is not cls:
         raise ValueError(f"effect id {eid!r} is already registered by {_REGISTRY[eid].__module__}")
     _REGISTRY[eid] = cls

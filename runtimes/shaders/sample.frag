@@ -186,7 +186,9 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
             }
             a = e1.xyz * hl;
             s = s / sl * hw;
-            area_mm2 = 4.0 * hl * hw * max(sl, 0.2);
+            // Lambertian cylinder: I = I_ref·sin θ over a projected area 2rℓ·sin θ, so its
+            // radiance is I_ref / 2rℓ in every direction (engine/emitters.py)
+            area_mm2 = 4.0 * hl * hw;
         } else if (kind == 2) {               // panel, emitting toward aim
             float ca = dot(w, e2.xyz);
             if (ca <= 0.0) {
@@ -194,7 +196,7 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
             }
             a = e1.xyz * hl;
             s = emitter_texel(e, 3).xyz * hw;
-            area_mm2 = 4.0 * hl * hw * max(ca, 0.1);
+            area_mm2 = 4.0 * hl * hw;         // Lambertian rectangle: radiance I_ref / A
         } else {                              // sphere: a facing square of area π r²
             vec3 ax = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
             a = ax * hw;
@@ -206,7 +208,8 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
         if (form <= 0.0) {
             continue;
         }
-        // emitter radiance toward P: intensity · profile / projected area (W·sr⁻¹·m⁻²·nm⁻¹)
+        // emitter radiance toward P: its own radiance I_ref / A times the profile's modulation
+        // (W·sr⁻¹·m⁻²·nm⁻¹)
         float theta = acos(clamp(dot(w, e2.xyz), -1.0, 1.0));
         float k = form * emitter_profile(e, theta) / (area_mm2 * 1e-6);
         s0 += k * emitter_texel(e, 4);

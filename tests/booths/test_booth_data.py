@@ -386,7 +386,8 @@ def test_iso_p1_and_p2_illuminance_at_the_viewing_plane():
         total = 0.0
         for lid in cfg.lamps:
             lp = _lamp(booth, lid)
-            assert lp.type == "panel" and lp.profile.type == "cosine_power" and lp.profile.exponent == 1
+            # a panel is a Lambertian rectangle by its type: no profile on top
+            assert lp.type == "panel" and lp.profile.type == "isotropic"
             assert lp.output.type == "luminous_flux_lm"
             h = lp.position_mm[2] - booth.sample_position_mm[2]
             total += cfg.dimming.get(lid, 1.0) * _lambertian_panel_illuminance_lx(

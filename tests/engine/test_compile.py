@@ -99,10 +99,8 @@ def test_panel_point_sources_cover_length_and_width(minimal_booth):
     _set_lamp(minimal_booth, "type: point\n    position_mm: [0, 0, 700]",
               "type: panel\n    position_mm: [0, 0, 700]\n    length_mm: 400\n    width_mm: 100\n"
               "    point_sources: 400")
-    _set_lamp(minimal_booth, "output: {type: peak_intensity_cd, value_cd: 1000}",
-              "output: {type: peak_intensity_cd, value_cd: 1000}\n    profile: {type: cosine_power, exponent: 1}")
-    f = minimal_booth / "booth.yaml"
-    f.write_text(f.read_text() + "effects:\n  angular_profile: {}\n")  # the model uses declared profiles
+    # a panel is Lambertian by its type: no profile, no effect needed (a cosine profile would
+    # modulate it to cos²)
     ir = compile_booth(minimal_booth)
     pts = ir.lamps[0].point_positions_mm()
     assert pts[:, 0].max() - pts[:, 0].min() > 350 and pts[:, 1].max() - pts[:, 1].min() > 70
