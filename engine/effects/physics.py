@@ -207,7 +207,7 @@ class ForwardContext:
 
 
 #: lines around a tube's surface over which occlusion is averaged
-TUBE_RING = 8
+TUBE_RING = 6
 #: ... for rectangles closer to the tube than this many radii
 TUBE_RING_REACH = 8.0
 
