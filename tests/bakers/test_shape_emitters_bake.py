@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from closed_forms import cylinder_quadrature_lx
 import pytest
 
 from lbscene.bakers.crosscheck import bake_points, cross_check
@@ -47,17 +48,8 @@ observer: {type: eye_point, position_mm: [0, -900, 500]}
 POINTS = np.array([[0, -100, 0], [250, 50, 0], [0, -100, 640], [-200, 150, 0]], float)
 
 
-def _tube_lx(p, n=(0, 0, 1.0), lv=10000, c=(0, -100, 700), length=590, r=13, na=3000, nr=720):
-    x = (np.arange(na) + 0.5) / na * length - length / 2
-    a = (np.arange(nr) + 0.5) / nr * 2 * math.pi
-    X, A = np.meshgrid(x, a, indexing="ij")
-    nrm = np.stack([np.zeros_like(A), np.cos(A), np.sin(A)], -1)
-    pts = np.asarray(c) + np.stack([X, np.zeros_like(X), np.zeros_like(X)], -1) + r * nrm
-    d = np.asarray(p) - pts
-    rho = np.linalg.norm(d, axis=-1)
-    cs = np.clip((d * nrm).sum(-1) / rho, 0, None)
-    cr = np.clip(-(d @ np.asarray(n)) / rho, 0, None)
-    return float(lv * (cs * cr / (rho * 1e-3) ** 2).sum() * (length / na) * (2 * math.pi * r / nr) * 1e-6)
+def _tube_lx(p, n=(0, 0, 1.0), lv=10000, c=(0, -100, 700), length=590, r=13):
+    return cylinder_quadrature_lx(lv, c, length, r, p, n)
 
 
 def _rect_lx(p, lv=10000, c=(0, 150, 600), a=300, b=150):

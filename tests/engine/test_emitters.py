@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from closed_forms import cylinder_quadrature_lx
 import pytest
 
 from lbscene.engine.compile import compile_booth
@@ -148,21 +149,6 @@ def test_long_tube_matches_infinite_cylinder(tmp_path):
         assert lux(ir, [[0, 0, 400 - h]])[0] == pytest.approx(math.pi * 8000 * 13 / h, rel=1e-3), h
 
 
-def _cylinder_quadrature_lx(lv, c, length, r, p, n, n_along=3000, n_around=720):
-    """Dense midpoint quadrature over the lateral surface (axis x): ∫ L cos θs cos θr / ρ² dA."""
-    x = (np.arange(n_along) + 0.5) / n_along * length - length / 2
-    a = (np.arange(n_around) + 0.5) / n_around * 2 * math.pi
-    X, A = np.meshgrid(x, a, indexing="ij")
-    nrm = np.stack([np.zeros_like(A), np.cos(A), np.sin(A)], -1)
-    pts = np.asarray(c) + np.stack([X, np.zeros_like(X), np.zeros_like(X)], -1) + r * nrm
-    d = np.asarray(p) - pts
-    rho = np.linalg.norm(d, axis=-1)
-    cs = np.clip((d * nrm).sum(-1) / rho, 0, None)
-    cr = np.clip(-(d @ np.asarray(n)) / rho, 0, None)
-    da = (length / n_along) * (2 * math.pi * r / n_around) * 1e-6
-    return float(lv * (cs * cr / (rho * 1e-3) ** 2).sum() * da)
-
-
 @pytest.mark.parametrize("p,n", [
     ((0, 0, 0), (0, 0, 1)),                 # floor, 700 mm below: r matters by 1.2 % already
     ((350, 200, 0), (0, 0, 1)),
@@ -175,7 +161,7 @@ def test_tube_near_field_matches_surface_quadrature(tmp_path, p, n):
     ir = compile_booth(booth(tmp_path, TUBE.format(z=700, l=590, r=13,
                                                    out="{type: luminance_cd_m2, value_cd_m2: 10000}")))
     n = np.asarray(n, float) / np.linalg.norm(n)
-    truth = _cylinder_quadrature_lx(10000, (0, 0, 700), 590, 13, p, n)
+    truth = cylinder_quadrature_lx(10000, (0, 0, 700), 590, 13, p, n)
     assert lux(ir, [p], [n])[0] == pytest.approx(truth, rel=1e-3)
 
 

@@ -1,0 +1,23 @@
+"""Truths written independently of lbscene's emitters, shared by the tests that need them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def cylinder_quadrature_lx(lv_cd_m2, centre_mm, length_mm, radius_mm, p_mm, n, n_along=3000, n_around=720):
+    """Illuminance (lx) at ``p_mm`` (normal ``n``) from a Lambertian cylinder of luminance ``lv_cd_m2``
+    along x: a dense midpoint quadrature over its lateral surface, ∫ L cos θs cos θr / ρ² dA."""
+    x = (np.arange(n_along) + 0.5) / n_along * length_mm - length_mm / 2
+    a = (np.arange(n_around) + 0.5) / n_around * 2 * math.pi
+    X, A = np.meshgrid(x, a, indexing="ij")
+    nrm = np.stack([np.zeros_like(A), np.cos(A), np.sin(A)], -1)
+    pts = np.asarray(centre_mm) + np.stack([X, np.zeros_like(X), np.zeros_like(X)], -1) + radius_mm * nrm
+    d = np.asarray(p_mm) - pts
+    rho = np.linalg.norm(d, axis=-1)
+    cs = np.clip((d * nrm).sum(-1) / rho, 0, None)
+    cr = np.clip(-(d @ np.asarray(n)) / rho, 0, None)
+    da = (length_mm / n_along) * (2 * math.pi * radius_mm / n_around) * 1e-6
+    return float(lv_cd_m2 * (cs * cr / (rho * 1e-3) ** 2).sum() * da)
