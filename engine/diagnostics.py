@@ -81,6 +81,7 @@ CODES: dict[str, str] = {
     "LB600": "build/bake/render failed",
     "LB601": "bake products missing",
     "LB602": "invalid bake job file",
+    "LB603": "a truth provider cannot represent the booth",
 }
 
 
