@@ -145,8 +145,8 @@ class MitsubaResult:
 
     illuminance_lx: np.ndarray
     std_error_lx: np.ndarray
-    spp: int
-    passes: int
+    spp: int                       # samples per pass
+    passes: np.ndarray             # passes averaged, per receiver
 
 
 def _coplanar_groups(P, N, tol_mm: float = 1e-6) -> list[np.ndarray]:
@@ -209,6 +209,11 @@ class MitsubaTruth:
         if meter and "detector_cosine_error" in fx:
             out.append("effect 'detector_cosine_error' (a meter response) has no Mitsuba "
                        "representation: ask for meter=False")
+        if "angular_profile" in fx:
+            set_params = sorted(k for k, v in (fx["angular_profile"] or {}).items() if v not in (None, {}, [], ()))
+            if set_params:
+                out.append(f"angular_profile parameters {set_params} have no Mitsuba representation "
+                           "(emitters are Lambertian shapes)")
         for lamp, _ in ir.lamps_on(self.lighting):
             ptype = (lamp.profile or {}).get("type", "isotropic")
             if "angular_profile" in fx and ptype != "isotropic":
@@ -365,10 +370,15 @@ class MitsubaTruth:
                        d.thickness_mm / 2).tolist()),
             "bsdf": bsdf}}
 
-    def scene_dict(self, points, normals) -> dict:
-        """The Mitsuba scene (dict) with one measuring disc and radiancemeter per receiver."""
+    def scene_dict(self, points, normals, film_bands: dict | None = None) -> dict:
+        """The Mitsuba scene (dict) with one measuring disc and radiancemeter per receiver.
+
+        ``film_bands``: name → 1 nm sensitivity of the film's channels (default: ``{'V': V(λ)}``).
+        """
         from .spectra import photopic_1nm
 
+        if film_bands is None:
+            film_bands = {"V": photopic_1nm()}
         P = np.asarray(points, float)
         N = np.asarray(normals, float)
         scene = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
@@ -376,8 +386,11 @@ class MitsubaTruth:
         scene.update(self._lamp_shapes())
         scene.update(self._occluders())
         scene.update(self._diffuser())
-        film = {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
-                "band_V": _spectrum(photopic_1nm())}
+        film = {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}
+        for k, (name, sens) in enumerate(film_bands.items()):
+            # a sensitivity must be a sampled spectrum (specfilm refuses a uniform one)
+            film[f"band_{k:03d}_{name}"] = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
+                                            "values": ", ".join(f"{x:.9g}" for x in np.clip(sens, 0, None))}
         for i, (p, n) in enumerate(zip(P, N)):
             a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
             u = _unit(a - n * (a @ n))
@@ -394,26 +407,77 @@ class MitsubaTruth:
         return scene
 
     # ------------------------------------------------------------------ measurement
-    def illuminance_with_error_lx(self, points, normals=None) -> MitsubaResult:
-        """Illuminance (lx) at ``points`` (mm) on surfaces facing ``normals`` (default +z), with
-        the standard error of its Monte Carlo estimate."""
-        mi = _mi()
+    def _receivers(self, points, normals):
         P = np.atleast_2d(np.asarray(points, float))
         if P.shape[1] == 2:
             P = np.c_[P, np.zeros(len(P))]
         N = np.tile([0, 0, 1.0], (len(P), 1)) if normals is None else np.broadcast_to(
             np.asarray(normals, float), P.shape).copy()
-        N = N / np.linalg.norm(N, axis=1, keepdims=True)
-        vals = np.zeros((self.passes, len(P)))
+        return P, N / np.linalg.norm(N, axis=1, keepdims=True)
+
+    def _render(self, P, N, film_bands: dict, scale, target_rel_error, max_passes):
+        """Per receiver and film channel: mean × ``scale``, its standard error, passes used.
+        The stopping rule looks at the worst channel."""
+        mi = _mi()
+        C = len(film_bands)
+        mean, se = np.zeros((len(P), C)), np.zeros((len(P), C))
+        used = np.zeros(len(P), int)
+        scale = np.broadcast_to(np.asarray(scale, float), (C,))
         for group in _coplanar_groups(P, N):
-            scene = mi.load_dict(self.scene_dict(P[group], N[group]))
+            scene = mi.load_dict(self.scene_dict(P[group], N[group], film_bands))
             for i, sensor in zip(group, scene.sensors()):
-                for k in range(self.passes):
+                vals = []
+                while True:
+                    k = len(vals)
                     img = mi.render(scene, sensor=sensor, spp=self.spp, seed=self.seed + 7919 * k + int(i))
-                    vals[k, i] = float(np.asarray(img).ravel()[0])
-        vals *= K_M * np.pi
-        return MitsubaResult(vals.mean(0), vals.std(0, ddof=1) / np.sqrt(self.passes),
-                             self.spp, self.passes)
+                    vals.append(scale * np.asarray(img, float).ravel()[:C])
+                    if len(vals) < self.passes:
+                        continue
+                    v = np.asarray(vals)
+                    m, s = v.mean(0), v.std(0, ddof=1) / np.sqrt(len(v))
+                    if target_rel_error is None or np.all(s <= target_rel_error * np.abs(m)) \
+                            or len(v) >= max_passes:
+                        break
+                mean[i], se[i], used[i] = m, s, len(v)
+        return mean, se, used
+
+    def illuminance_with_error_lx(self, points, normals=None, *, target_rel_error: float | None = None,
+                                  max_passes: int = 64) -> MitsubaResult:
+        """Illuminance (lx) at ``points`` (mm) on surfaces facing ``normals`` (default +z), with
+        the standard error of its Monte Carlo estimate.
+
+        ``target_rel_error``: keep adding passes (each ``spp`` samples, own seed) to a receiver
+        until its standard error is at most this fraction of its value, or ``max_passes``.
+        """
+        from .spectra import photopic_1nm
+
+        P, N = self._receivers(points, normals)
+        m, s, used = self._render(P, N, {"V": photopic_1nm()}, K_M * np.pi, target_rel_error, max_passes)
+        return MitsubaResult(m[:, 0], s[:, 0], self.spp, used)
+
+    def spectral_irradiance_bands(self, points, normals=None, *, target_rel_error: float | None = None,
+                                  max_passes: int = 64) -> tuple[np.ndarray, np.ndarray]:
+        """Band-mean spectral irradiance (W·m⁻²·nm⁻¹) on the IR's band grid, shape (M, B), and its
+        standard error: film channels are the bands' box functions, E_b = π ∫_b L dλ / Δλ_b."""
+        from .spectral import REFERENCE_WAVELENGTHS_NM as WL
+
+        P, N = self._receivers(points, normals)
+        edges = self.ir.grid.edges_nm
+        bands = {}
+        for k in range(len(edges) - 1):
+            # 1 nm samples inside the band; the edge samples count half, as a box integrated on 1 nm
+            w = ((WL > edges[k]) & (WL < edges[k + 1])).astype(float)
+            w[(WL == edges[k]) | (WL == edges[k + 1])] = 0.5
+            bands[f"b{k:02d}"] = w
+        width = np.diff(edges)
+        m, s, _ = self._render(P, N, bands, np.pi / width, target_rel_error, max_passes)
+        return m, s
+
+    def white_tile_radiance_bands(self, point=None, normal=(0.0, 0.0, 1.0), reflectance_bands=1.0):
+        """Band-mean spectral radiance (W·sr⁻¹·m⁻²·nm⁻¹) of a Lambertian tile: ρ_b E_b / π."""
+        p = self.ir.sample_position_mm if point is None else point
+        E, _ = self.spectral_irradiance_bands([p], [normal])
+        return np.asarray(reflectance_bands) * E[0] / np.pi
 
     def illuminance_lx(self, points, normals=None, meter: bool = True) -> np.ndarray:
         """Illuminance (lx); ``meter`` is accepted for the truth-provider interface (an ideal

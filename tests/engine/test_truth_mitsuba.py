@@ -258,3 +258,18 @@ def test_mitsuba_is_a_registered_truth_provider_imported_lazily():
             "assert 'mitsuba' in f.TRUTH_PROVIDERS; assert 'mitsuba' not in sys.modules; print('ok')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.strip() == "ok", out.stderr
+
+
+def test_band_irradiance_of_a_point_lamp_follows_its_spectrum(tmp_path):
+    # D65 shape, 1000 cd: E_b = I_b cos θ / d², I_b the band mean of the peak spectral intensity
+    ir = _booth(tmp_path, "- {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: cie_illuminant, "
+                          "name: D65}, output: {type: peak_intensity_cd, value_cd: 1000}}")
+    I_b = ir.grid.integrate(ir.lamps[0].peak_intensity_1nm)
+    truth = MitsubaTruth(ir, "L", effects={}, spp=4096)
+    E, se = truth.spectral_irradiance_bands([[300, 0, 0]])
+    d = np.array([-300, 0, 1000.0])
+    expected = I_b * (d[2] / np.linalg.norm(d)) / (np.linalg.norm(d) * 1e-3) ** 2
+    # the film's box bands are the 1 nm samples' linear interpolant: 0.3 % at the band edges
+    assert np.all(np.abs(E[0] - expected) <= K_SIGMA * se[0] + 3e-3 * expected), (E[0] / expected - 1)
+    tile = truth.white_tile_radiance_bands(point=(300, 0, 0), reflectance_bands=0.9)
+    np.testing.assert_allclose(tile, 0.9 * expected / np.pi, rtol=0.02)
