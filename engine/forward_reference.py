@@ -691,3 +691,13 @@ class ReferenceEngine:
 
 
 register_truth_provider("reference", lambda ir, lighting, **kw: ReferenceEngine(ir, lighting, **kw))
+
+
+def _mitsuba_truth(ir, lighting, **kw):
+    # imported on first use: `import lbscene` must not import mitsuba (an optional extra)
+    from .truth_mitsuba import MitsubaTruth
+
+    return MitsubaTruth(ir, lighting, **kw)
+
+
+register_truth_provider("mitsuba", _mitsuba_truth)

@@ -23,7 +23,7 @@ def test_cli_import_is_light():
     import sys
 
     code = ("import sys, lbscene.cli; heavy = [m for m in ('colour', 'pxr', 'bpy', 'moderngl', "
-            "'matplotlib', 'scipy') if m in sys.modules]; print(','.join(heavy))")
+            "'matplotlib', 'scipy', 'mitsuba') if m in sys.modules]; print(','.join(heavy))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
 

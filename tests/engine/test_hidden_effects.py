@@ -3,7 +3,9 @@
 The truth is the brute-force Monte Carlo :class:`ReferenceEngine` (thousands
 of jittered lamp samples, per-ray occlusion, its own finer radiosity): a
 different computation from the forward model being fitted, so these tests
-cannot pass by symmetry.  Readings get 1 % meter noise (fixed seed).  The
+cannot pass by symmetry.  ``LBSCENE_HIDDEN_EFFECT_TRUTH=mitsuba`` draws the
+truth of the effects Mitsuba can represent from the independent renderer
+instead (``engine/truth_mitsuba.py``); the others stay with the reference engine.  Readings get 1 % meter noise (fixed seed).  The
 booth file given to the tool lacks the effect; the fix is an edit of the
 booth YAML only — the diagnosis' own snippet — never code.
 
@@ -22,6 +24,7 @@ truth, must then resolve it.
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 from pathlib import Path
@@ -51,6 +54,27 @@ TRUTHS = {
 }
 
 
+#: where the synthetic truth comes from: 'reference' (the brute-force Monte Carlo engine) or 'mitsuba'
+#: (the independent renderer, engine/truth_mitsuba.py); with 'mitsuba', the hidden effects Mitsuba
+#: cannot represent still come from 'reference'
+TRUTH_PROVIDER = os.environ.get("LBSCENE_HIDDEN_EFFECT_TRUTH", "reference")
+#: hidden effects (as set up here) that Mitsuba refuses: lamp profiles and overrides, end falloff,
+#: mirrors, a meter response, a Lambertian diffuse-fraction plate
+MITSUBA_CANNOT = {"angular_profile", "tube_end_falloff", "reflector", "detector_cosine_error", "diffuser"}
+
+
+def truth_engine_for(booth: Path, truth: str):
+    """The engine the truth ``truth`` comes from (None: ``synthesize`` makes the reference one)."""
+    if TRUTH_PROVIDER == "reference" or truth in MITSUBA_CANNOT:
+        return None
+    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.forward_synthetic import truth_engine
+
+    # the booth's slot plates are declared per lamp; real plates block every lamp
+    return truth_engine(compile_booth(booth), "FL", TRUTHS[truth], provider=TRUTH_PROVIDER,
+                        allow_lamp_specific_occluders=True)
+
+
 @pytest.fixture
 def booth(tmp_path) -> Path:
     """A private copy of the test booth that the test may edit."""
@@ -60,9 +84,11 @@ def booth(tmp_path) -> Path:
 
 
 def measure(booth: Path, out: Path, truth: str, *, known: bool, extra_sets=()) -> Path:
+    engine = truth_engine_for(booth, truth)
     return synthesize(booth, out, lighting="FL", truth_effects=TRUTHS[truth],
                       noise_percent=NOISE_PERCENT, known_output_groups=["fl"] if known else (),
-                      extra_sets=extra_sets)
+                      extra_sets=extra_sets, engine=engine,
+                      provider="reference" if engine is None else TRUTH_PROVIDER)
 
 
 def add_to_booth(booth: Path, snippet: str) -> None:

@@ -1,0 +1,275 @@
+"""The Mitsuba truth against closed forms: is the truth true?
+
+Each expected value comes from an exact formula or from a quadrature written
+here, never from lbscene's lamp code.  Monte Carlo noise: the provider's own
+standard error σ (spread of independent passes); each check allows
+``K_SIGMA·σ`` plus a stated systematic allowance (the measuring disc's lift, a
+tessellated sphere).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from lbscene.engine.compile import compile_booth
+from lbscene.engine.diagnostics import LbsceneUserError
+
+pytest.importorskip("mitsuba")
+
+from lbscene.engine.truth_mitsuba import MitsubaTruth  # noqa: E402
+
+K_SIGMA = 4.0
+#: point lamp peak intensity of the test booths, cd
+I_CD = 1000.0
+
+
+def _booth(tmp_path, lamp_yaml: str, *, wall: float = 0.0, extra: str = "") -> object:
+    """A 3 m box booth with one lamp of 1000 cd peak luminous intensity and equal-energy spectrum."""
+    d = tmp_path / "booth"
+    d.mkdir()
+    (d / "booth.yaml").write_text(textwrap.dedent(f"""\
+        version: 1
+        kind: booth
+        name: closed-form test
+        provenance: {{status: synthetic, source: "closed-form tests"}}
+        interior: {{type: box, width_mm: 3000, depth_mm: 3000, height_mm: 3000}}
+        materials:
+          wall: {{type: diffuse, reflectance: {{type: constant, value: {wall}}}}}
+        surfaces: {{floor: wall, left_wall: wall, right_wall: wall, rear_wall: wall, ceiling: wall}}
+        lamps:
+        {textwrap.indent(lamp_yaml, '  ')}
+        lighting:
+          L: {{lamps: [lamp]}}
+        observer: {{type: eye_point, position_mm: [0, -1400, 1500]}}
+        {extra}
+        """))
+    return compile_booth(d)
+
+
+#: the measuring disc sits DISC_LIFT_MM (0.02 mm) off the point: ≤ 1e-4 relative beyond 400 mm
+LIFT_ALLOWANCE = 1e-4
+
+
+def _check(res, expected, allowance_rel=0.0):
+    E, se = res.illuminance_lx, res.std_error_lx
+    tol = K_SIGMA * se + (allowance_rel + LIFT_ALLOWANCE) * np.abs(expected) + 1e-9
+    assert np.all(np.abs(E - expected) <= tol), (E, expected, se)
+    # the noise estimate must itself be small enough for the check to mean something
+    assert np.all(se <= 0.005 * np.abs(expected) + 1e-9), (se, expected)
+
+
+# --------------------------------------------------------------------------- point, bulb
+
+def test_point_lamp_is_the_inverse_square_law(tmp_path):
+    ir = _booth(tmp_path, "- {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: constant, value: 1}, "
+                          "output: {type: peak_intensity_cd, value_cd: 1000}}")
+    P = np.array([[0, 0, 0], [400, 300, 0], [0, 0, 500.0]])
+    N = np.array([[0, 0, 1], [0, 0, 1], [0.6, 0, 0.8]])
+    d = np.array([0, 0, 1000.0]) - P
+    r = np.linalg.norm(d, axis=1)
+    expected = I_CD * (d * N).sum(1) / r / (r * 1e-3) ** 2
+    _check(MitsubaTruth(ir, "L", effects={}, spp=4096).illuminance_with_error_lx(P, N), expected)
+
+
+def test_bulb_is_a_lambertian_sphere_of_intensity_L_pi_r2(tmp_path):
+    # outside a uniform Lambertian sphere that lies wholly above the receiver's horizon,
+    # E = π L (r/d)² cos θ = I cos θ / d² exactly, with I = L π r²
+    ir = _booth(tmp_path, "- {id: lamp, type: bulb, position_mm: [0, 0, 1000], radius_mm: 60, "
+                          "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}")
+    P = np.array([[0, 0, 0], [500, -200, 0], [0, 0, 700.0]])
+    N = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1.0]])
+    d = np.array([0, 0, 1000.0]) - P
+    r = np.linalg.norm(d, axis=1)
+    expected = I_CD * (d * N).sum(1) / r / (r * 1e-3) ** 2
+    _check(MitsubaTruth(ir, "L", effects={}, spp=4096).illuminance_with_error_lx(P, N), expected)
+
+
+# --------------------------------------------------------------------------- panel
+
+def _corner(X, Y):
+    """π × form factor from a point to a parallel rectangle [0, X]×[0, Y] (in units of the height),
+    the point below one corner; odd in X and in Y."""
+    a = np.sqrt(1 + X * X)
+    b = np.sqrt(1 + Y * Y)
+    return 0.5 * (X / a * np.arctan(Y / a) + Y / b * np.arctan(X / b))
+
+
+def _rectangle_E(L_cd_m2, x1, x2, y1, y2, h):
+    """Illuminance (lx) under a Lambertian rectangle of luminance L, parallel to the receiver at height h,
+    spanning [x1, x2]×[y1, y2] relative to the receiver's foot point (superposition of corners)."""
+    return L_cd_m2 * (_corner(x2 / h, y2 / h) - _corner(x1 / h, y2 / h)
+                      - _corner(x2 / h, y1 / h) + _corner(x1 / h, y1 / h))
+
+
+def test_panel_is_a_lambertian_rectangle_on_and_off_axis(tmp_path):
+    length, width, h = 600.0, 300.0, 500.0
+    ir = _booth(tmp_path, f"- {{id: lamp, type: panel, position_mm: [0, 0, {h}], axis: [1, 0, 0], aim: [0, 0, -1], "
+                          f"length_mm: {length}, width_mm: {width}, spd: {{type: constant, value: 1}}, "
+                          "output: {type: peak_intensity_cd, value_cd: 1000}}")
+    L = I_CD / (length * width * 1e-6)
+    P = np.array([[0, 0, 0], [200, 100, 0], [700, -400, 0], [0, 0, 300.0]])
+    expected = np.array([_rectangle_E(L, -length / 2 - x, length / 2 - x, -width / 2 - y, width / 2 - y, h - z)
+                         for x, y, z in P])
+    _check(MitsubaTruth(ir, "L", effects={}, spp=4096).illuminance_with_error_lx(P), expected)
+
+
+# --------------------------------------------------------------------------- tube
+
+def _cylinder_E(L_cd_m2, centre, axis, radius, length, p, n, nz=96, nphi=96):
+    """Illuminance (lx) at ``p`` (normal ``n``) from the lateral surface of a Lambertian cylinder,
+    by Gauss–Legendre quadrature over the arc visible from ``p`` (cos > 0 there, smooth integrand):
+    E = ∫∫ L cos θ_s cos θ_r / d² r dφ dz.  Valid when the whole tube lies above the receiver plane."""
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    c = np.asarray(centre, float)
+    a = np.array([0, 0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0, 0])
+    e1 = a - axis * (a @ axis)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    q = np.asarray(p, float) - c
+    qr = q - axis * (q @ axis)
+    rho = np.linalg.norm(qr)
+    phi0 = np.arctan2(qr @ e2, qr @ e1)
+    half = np.arccos(radius / rho)
+    xz, wz = np.polynomial.legendre.leggauss(nz)
+    xp, wp = np.polynomial.legendre.leggauss(nphi)
+    z = xz * length / 2
+    phi = phi0 + xp * half
+    Z, PHI = np.meshgrid(z, phi, indexing="ij")
+    nrm = np.cos(PHI)[..., None] * e1 + np.sin(PHI)[..., None] * e2
+    s = c + Z[..., None] * axis + radius * nrm
+    dv = np.asarray(p, float) - s
+    d2 = (dv ** 2).sum(-1)
+    cs = (dv * nrm).sum(-1) / np.sqrt(d2)
+    cr = -(dv @ np.asarray(n, float)) / np.sqrt(d2)
+    assert np.all(cs > -1e-12) and np.all(cr > 0)
+    f = cs * cr / (d2 * 1e-6) * radius * 1e-3
+    return L_cd_m2 * (wz[:, None] * wp[None, :] * f).sum() * (length * 1e-3 / 2) * half
+
+
+def test_tube_is_a_lambertian_cylinder_in_the_near_field(tmp_path):
+    r, length = 13.0, 600.0
+    ir = _booth(tmp_path, f"- {{id: lamp, type: tube, position_mm: [0, 0, 400], axis: [1, 0, 0], "
+                          f"length_mm: {length}, radius_mm: {r}, spd: {{type: constant, value: 1}}, "
+                          "output: {type: peak_intensity_cd, value_cd: 1000}}")
+    L = I_CD / (2 * r * length * 1e-6)
+    # close to the tube (40 mm below its surface), beyond its end, oblique receivers
+    P = np.array([[0, 0, 347.0], [250, 30, 200], [450, -100, 0], [0, 0, 0]])
+    N = np.array([[0, 0, 1.0], [0, 0, 1], [-0.5, 0, 0.866], [0, 0, 1]])
+    N = N / np.linalg.norm(N, axis=1, keepdims=True)
+    expected = np.array([_cylinder_E(L, (0, 0, 400), (1, 0, 0), r, length, p, n) for p, n in zip(P, N)])
+    # the disc's lift: 4e-4 relative at 40 mm from the tube; a cylinder's area sampling is noisy
+    _check(MitsubaTruth(ir, "L", effects={}, spp=65536).illuminance_with_error_lx(P, N), expected, 3e-4)
+
+
+def test_tube_far_field_intensity_is_L_2rl_sin_theta(tmp_path):
+    # far from a short tube, I(θ) = L·2rℓ·sin θ (θ from the axis): 0.3 % near-field terms at 1.4 m
+    r, length = 10.0, 100.0
+    ir = _booth(tmp_path, f"- {{id: lamp, type: tube, position_mm: [-1000, 0, 1400], axis: [1, 0, 0], "
+                          f"length_mm: {length}, radius_mm: {r}, spd: {{type: constant, value: 1}}, "
+                          "output: {type: peak_intensity_cd, value_cd: 1000}}")
+    src = np.array([-1000, 0, 1400.0])
+    P = np.array([[-1000, 0, 0], [0, 0, 0], [600, 300, 0]])
+    d = src - P
+    dist = np.linalg.norm(d, axis=1)
+    u = d / dist[:, None]
+    sin_t = np.sqrt(1 - u[:, 0] ** 2)
+    expected = I_CD * sin_t * u[:, 2] / (dist * 1e-3) ** 2
+    _check(MitsubaTruth(ir, "L", effects={}, spp=65536).illuminance_with_error_lx(P), expected, 3e-3)
+
+
+# --------------------------------------------------------------------------- enclosure
+
+def _icosphere(level: int):
+    t = (1 + 5 ** 0.5) / 2
+    v = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+         (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+         (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
+         (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = [np.array(x, float) / np.linalg.norm(x) for x in v]
+    for _ in range(level):
+        cache, nf = {}, []
+
+        def mid(i, j):
+            k = (min(i, j), max(i, j))
+            if k not in cache:
+                m = v[i] + v[j]
+                v.append(m / np.linalg.norm(m))
+                cache[k] = len(v) - 1
+            return cache[k]
+        for a, b, c in f:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            nf += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        f = nf
+    return np.array(v), np.array(f)
+
+
+@pytest.mark.parametrize("rho", [0.5])
+def test_closed_sphere_radiosity_is_E_direct_over_1_minus_rho(tmp_path, rho):
+    """Inside a closed sphere of uniform reflectance ρ with an isotropic point at its centre, every
+    element sees every other with form factor dA/A, so E = E_direct/(1 − ρ) everywhere."""
+    from lbscene.engine.ir import IRSurface
+
+    R = 500.0
+    ir = _booth(tmp_path, "- {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: constant, value: 1}, "
+                          "output: {type: peak_intensity_cd, value_cd: 1000}}", wall=rho)
+    V, F = _icosphere(4)                               # 5120 triangles
+    centre = np.array([0, 0, 1000.0])
+    sphere = IRSurface(id="sphere", role="mesh", material="wall",
+                       vertices_mm=tuple(map(tuple, (V * R + centre).tolist())),
+                       triangles=tuple(map(tuple, F.tolist())))
+    ir = ir.model_copy(update={"surfaces": (sphere,)})
+    idx = [0, 5, 11, 40]                               # vertices: exactly at radius R
+    P = V[idx] * R + centre
+    N = -V[idx]
+    expected = I_CD / (R * 1e-3) ** 2 / (1 - rho)
+    # tessellation: the inscribed 5120-face polyhedron is 0.2 % smaller in area than the sphere
+    res = MitsubaTruth(ir, "L", effects={"interreflection": {}}, spp=4096).illuminance_with_error_lx(P, N)
+    _check(res, np.full(len(P), expected), 4e-3)
+
+
+# --------------------------------------------------------------------------- refusals, registry
+
+def test_effects_mitsuba_cannot_represent_are_refused_with_a_pinned_message(tmp_path):
+    ir = _booth(tmp_path, "- {id: lamp, type: tube, position_mm: [0, 0, 1000], length_mm: 600, radius_mm: 13, "
+                          "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}")
+    with pytest.raises(LbsceneUserError) as e:
+        MitsubaTruth(ir, "L", effects={"tube_end_falloff": {}, "reflector": {}})
+    assert e.value.diagnostics[0].format() == (
+        "error LB603: the Mitsuba truth cannot represent this booth: effect 'reflector' has no Mitsuba "
+        "representation; effect 'tube_end_falloff' has no Mitsuba representation")
+
+
+def test_a_non_isotropic_profile_is_refused(tmp_path):
+    ir = _booth(tmp_path, "- {id: lamp, type: tube, position_mm: [0, 0, 1000], length_mm: 600, radius_mm: 13, "
+                          "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}, "
+                          "profile: {type: cosine_power, exponent: 1}}")
+    with pytest.raises(LbsceneUserError, match="lamp 'lamp': angular profile 'cosine_power' has no Mitsuba"):
+        MitsubaTruth(ir, "L", effects={"angular_profile": {}})
+
+
+def test_mitsuba_is_a_registered_truth_provider_imported_lazily():
+    code = ("import sys, lbscene.engine.forward_reference as f; "
+            "assert 'mitsuba' in f.TRUTH_PROVIDERS; assert 'mitsuba' not in sys.modules; print('ok')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "ok", out.stderr
+
+
+def test_band_irradiance_of_a_point_lamp_follows_its_spectrum(tmp_path):
+    # D65 shape, 1000 cd: E_b = I_b cos θ / d², I_b the band mean of the peak spectral intensity
+    ir = _booth(tmp_path, "- {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: cie_illuminant, "
+                          "name: D65}, output: {type: peak_intensity_cd, value_cd: 1000}}")
+    I_b = ir.grid.integrate(ir.lamps[0].peak_intensity_1nm)
+    truth = MitsubaTruth(ir, "L", effects={}, spp=4096)
+    E, se = truth.spectral_irradiance_bands([[300, 0, 0]])
+    d = np.array([-300, 0, 1000.0])
+    expected = I_b * (d[2] / np.linalg.norm(d)) / (np.linalg.norm(d) * 1e-3) ** 2
+    # the film's box bands are the 1 nm samples' linear interpolant: 0.3 % at the band edges
+    assert np.all(np.abs(E[0] - expected) <= K_SIGMA * se[0] + 3e-3 * expected), (E[0] / expected - 1)
+    tile = truth.white_tile_radiance_bands(point=(300, 0, 0), reflectance_bands=0.9)
+    np.testing.assert_allclose(tile, 0.9 * expected / np.pi, rtol=0.02)
