@@ -21,6 +21,8 @@ panel                ``rectangle`` (length along ``axis`` × width along
                      ``aim × axis``) emitting toward ``aim``, :math:`L = I / (ℓ w)`
 bulb                 ``sphere``, :math:`L = I / (π r^2)`
 point                ``point`` emitter of intensity :math:`I(λ)`
+lamp bodies          tube, panel and bulb shapes are black (absorbing), as in the
+                     forward model; a lamp that is off stays as a black body
 occluders            black (or declared-material) ``twosided`` rectangles; an
                      aperture plate is the frame around its opening
                      (``aperture_occlusion`` on)
@@ -265,34 +267,52 @@ class MitsubaTruth:
     def _lamp_shapes(self) -> dict:
         ir, fx = self.ir, self.effects
         out = {}
-        for lamp, level in ir.lamps_on(self.lighting):
+        on = dict((lp.id, level) for lp, level in ir.lamps_on(self.lighting))
+        black = {"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.0}}
+        for lamp in ir.lamps:
+            level = on.get(lamp.id, 0.0)
+            if level <= 0.0:
+                # a lamp that is off is still a body in the way (black, as the model's)
+                from .forward_geometry import lamp_body
+
+                if lamp.mount != "booth" or lamp_body(lamp) is None:
+                    continue
+                shape = self._lamp_shape(lamp, np.zeros(471))
+                shape.pop("emitter")
+                out[f"body_{lamp.id}"] = dict(shape, bsdf=black)
+                continue
             I = level * ir.lamp_emission_1nm(lamp, with_filter="spectral_filter" in fx)  # W/sr/nm
-            p = np.asarray(lamp.position_mm, float)
-            ax = _unit(lamp.axis)
-            if lamp.kind == "tube":
-                r_m, l_m = lamp.radius_mm * 1e-3, lamp.length_mm * 1e-3
-                out[f"lamp_{lamp.id}"] = {
-                    "type": "cylinder", "p0": (p - ax * lamp.length_mm / 2).tolist(),
-                    "p1": (p + ax * lamp.length_mm / 2).tolist(), "radius": float(lamp.radius_mm),
-                    "emitter": {"type": "area", "radiance": _spectrum(I / (2 * r_m * l_m))}}
-            elif lamp.kind == "panel":
-                aim = _unit(lamp.aim)
-                wdir = _unit(np.cross(aim, ax))
-                l_m, w_m = lamp.length_mm * 1e-3, lamp.width_mm * 1e-3
-                out[f"lamp_{lamp.id}"] = {
-                    "type": "rectangle",
-                    "to_world": _mi().ScalarTransform4f(
-                        _frame(ax, wdir, aim, p, lamp.length_mm / 2, lamp.width_mm / 2, 1.0).tolist()),
-                    "emitter": {"type": "area", "radiance": _spectrum(I / (l_m * w_m))}}
-            elif lamp.kind == "bulb":
-                r_m = lamp.radius_mm * 1e-3
-                out[f"lamp_{lamp.id}"] = {
-                    "type": "sphere", "center": p.tolist(), "radius": float(lamp.radius_mm),
-                    "emitter": {"type": "area", "radiance": _spectrum(I / (np.pi * r_m ** 2))}}
-            else:
-                out[f"lamp_{lamp.id}"] = {"type": "point", "position": p.tolist(),
-                                          "intensity": _spectrum(I * 1e6)}
+            shape = self._lamp_shape(lamp, I)
+            if lamp.kind != "point":
+                shape["bsdf"] = black
+            out[f"lamp_{lamp.id}"] = shape
         return out
+
+    def _lamp_shape(self, lamp, I) -> dict:
+        """The Mitsuba shape (with its area emitter) of one lamp of peak intensity ``I`` (W/sr/nm)."""
+        p = np.asarray(lamp.position_mm, float)
+        ax = _unit(lamp.axis)
+        if lamp.kind == "tube":
+            r_m, l_m = lamp.radius_mm * 1e-3, lamp.length_mm * 1e-3
+            return {
+                "type": "cylinder", "p0": (p - ax * lamp.length_mm / 2).tolist(),
+                "p1": (p + ax * lamp.length_mm / 2).tolist(), "radius": float(lamp.radius_mm),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (2 * r_m * l_m))}}
+        if lamp.kind == "panel":
+            aim = _unit(lamp.aim)
+            wdir = _unit(np.cross(aim, ax))
+            l_m, w_m = lamp.length_mm * 1e-3, lamp.width_mm * 1e-3
+            return {
+                "type": "rectangle",
+                "to_world": _mi().ScalarTransform4f(
+                    _frame(ax, wdir, aim, p, lamp.length_mm / 2, lamp.width_mm / 2, 1.0).tolist()),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (l_m * w_m))}}
+        if lamp.kind == "bulb":
+            r_m = lamp.radius_mm * 1e-3
+            return {
+                "type": "sphere", "center": p.tolist(), "radius": float(lamp.radius_mm),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (np.pi * r_m ** 2))}}
+        return {"type": "point", "position": p.tolist(), "intensity": _spectrum(I * 1e6)}
 
     def _bsdf(self, reflectance_1nm) -> dict:
         return {"type": "twosided", "material": {"type": "diffuse",

@@ -123,6 +123,9 @@ class InterreflectionEffect(PhysicalEffect):
         meshes: bool = Field(True, description="Include the booth's meshes (luminaire cavity, "
                                                "props): both faces reflect, and they block light "
                                                "between surfaces (visibility tested).")
+        lamp_bodies: bool = Field(True, description="Lamp bodies (a tube's cylinder, a panel, a "
+                                                    "bulb's sphere) block light between surfaces "
+                                                    "and other lamps' light on them (absorbing).")
 
     @classmethod
     def applicable(cls, ir, lighting):
