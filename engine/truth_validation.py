@@ -17,6 +17,10 @@ edited after its truth was rendered.
 The deviation reported is the relative one per point,
 :math:`δ_i = E_\\text{model}(p_i)/E_\\text{truth}(p_i) − 1`, summarised as RMS
 :math:`\\sqrt{\\overline{δ^2}}` and max :math:`\\max |δ_i|` (percent).
+The truth's own Monte Carlo noise :math:`ν = \\sqrt{\\overline{(σ_i/E_i)^2}}`
+(σ its standard error) adds to the RMS in quadrature, independent of the model's
+error, so :func:`compare_with_truth` also reports the model's RMS with that noise
+removed, :math:`\\sqrt{\\max(0, \\overline{δ^2} − ν^2)}`.
 
 Examples
 --------
@@ -35,7 +39,8 @@ import numpy as np
 from .atomic import write_atomic
 
 __all__ = ["TruthData", "floor_grid_mm", "validation_grid", "GRIDS", "booth_files_sha256",
-           "write_truth_csv", "read_truth_csv", "deviation_percent", "TRUTH_COLUMNS"]
+           "write_truth_csv", "read_truth_csv", "deviation_percent", "TRUTH_COLUMNS",
+           "TruthComparison", "compare_with_truth"]
 
 TRUTH_COLUMNS = ("x_mm", "y_mm", "z_mm", "normal_x", "normal_y", "normal_z", "illuminance_lx",
                  "std_error_lx", "passes")
@@ -120,3 +125,51 @@ def deviation_percent(model_lx, truth_lx) -> tuple[float, float]:
     """(RMS, max) of the relative deviation model/truth − 1, in percent."""
     d = np.asarray(model_lx, float) / np.asarray(truth_lx, float) - 1.0
     return float(100 * np.sqrt(np.mean(d ** 2))), float(100 * np.max(np.abs(d)))
+
+
+@dataclass(frozen=True)
+class TruthComparison:
+    """The forward model against a committed truth on one grid (percentages of the truth).
+
+    ``rms_percent`` and ``max_percent``: :func:`deviation_percent`; ``truth_noise_percent``:
+    :math:`ν = 100\\sqrt{\\overline{(σ_i/E_i)^2}}`; ``rms_noise_removed_percent``:
+    :math:`\\sqrt{\\max(0, \\text{rms}^2 − ν^2)}`, the model's own RMS deviation.
+    ``booth_sha256_ok``: the booth folder is the one the truth was rendered from.
+    """
+
+    grid: str
+    points: int
+    rms_percent: float
+    max_percent: float
+    truth_noise_percent: float
+    rms_noise_removed_percent: float
+    booth_sha256_ok: bool
+    model_lx: np.ndarray
+    truth: TruthData
+
+
+def compare_with_truth(booth_dir: Path | str, grid: str, *, ir=None, cache: dict | None = None
+                       ) -> TruthComparison:
+    """Forward model (physical surfaces, ``meter=False``; the lighting and effects of the booth,
+    the lighting named in the CSV) against ``truth-<grid>.csv`` beside the booth.
+
+    ``ir``: the compiled booth (compiled here if not given); ``cache``: the forward model's cache.
+    Raises ``FileNotFoundError`` when the truth has not been rendered.
+    """
+    from .forward import ForwardModel
+
+    booth_dir = Path(booth_dir)
+    truth = read_truth_csv(booth_dir / f"truth-{grid}.csv")
+    if ir is None:
+        from .compile import compile_booth
+
+        ir = compile_booth(booth_dir)
+    lighting = truth.meta.get("lighting") or next(iter(ir.lighting))
+    model = ForwardModel(ir, lighting, cache=cache).illuminance_lx(truth.points_mm, truth.normals, meter=False)
+    rms, mx = deviation_percent(model, truth.illuminance_lx)
+    noise = float(100 * np.sqrt(np.mean((truth.std_error_lx / truth.illuminance_lx) ** 2)))
+    return TruthComparison(grid=grid, points=len(truth.illuminance_lx), rms_percent=rms, max_percent=mx,
+                           truth_noise_percent=noise,
+                           rms_noise_removed_percent=float(np.sqrt(max(0.0, rms ** 2 - noise ** 2))),
+                           booth_sha256_ok=truth.meta.get("booth_sha256") == booth_files_sha256(booth_dir),
+                           model_lx=np.asarray(model, float), truth=truth)
