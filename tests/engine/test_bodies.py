@@ -10,7 +10,7 @@ import pytest
 
 from lbscene.engine.compile import compile_booth
 from lbscene.engine.forward_geometry import (Ball, Capsule, Rectangle, bodies_block,
-                                             segment_segment_distance_mm)
+                                             segment_segment_distance_mm, swept_pairs_near_body)
 
 
 def _brute_distance(a, b, p0, p1, n=801):
@@ -39,6 +39,39 @@ def test_segment_distance_parallel_and_crossing_cases():
     d = segment_segment_distance_mm(a, b, p0, p1)
     # parallel at 10 mm; crossing over the axis 5 mm above; beyond the end: |(100,3,4)-(100,0,0)|
     np.testing.assert_allclose(d, [10.0, 5.0, np.hypot(100, 5)], atol=1e-9)
+
+
+def _in_ball(rng, c, r, n):
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    return c + v * (r * rng.uniform(0, 1, n) ** (1 / 3))[:, None]
+
+
+@pytest.mark.parametrize("body", [
+    Capsule(np.array([-300.0, 0, 650]), np.array([300.0, 0, 650]), 13.0),
+    Ball(np.array([50.0, -40, 600]), 30.0),
+    Rectangle(np.array([0.0, 0, 600]), np.array([0.0, 0, 1]), np.array([1.0, 0, 0]), (200.0, 100.0),
+              hole_half=(150.0, 60.0)),
+], ids=["capsule", "ball", "aperture"])
+def test_swept_prefilter_never_drops_a_pair_a_segment_can_block(body):
+    # pairs of balls (a patch's reach) round the body; any segment between points of the two
+    # balls that a body blocks must belong to a pair the prefilter keeps
+    rng = np.random.default_rng(11)
+    n = 400
+    ca = rng.uniform([-450, -300, 0], [450, 300, 700], (n, 3))
+    cb = rng.uniform([-450, -300, 500], [450, 300, 700], (n, 3))
+    ra = rng.uniform(0, 120, n)
+    rb = rng.uniform(0, 40, n)
+    near = swept_pairs_near_body(body, ca, cb, ra, rb)
+    blocked_any = np.zeros(n, bool)
+    for _ in range(64):
+        A = np.array([_in_ball(rng, c, r, 1)[0] for c, r in zip(ca, ra)])
+        B = np.array([_in_ball(rng, c, r, 1)[0] for c, r in zip(cb, rb)])
+        blocked_any |= bodies_block(A, B, [body])
+    assert blocked_any.sum() > 10                       # the test exercises blocked pairs
+    assert not np.any(blocked_any & ~near)
+    # and it is a filter: most pairs are dropped
+    assert near.mean() < 0.6
 
 
 def test_bodies_block_tube_ball_and_aperture_plate():
