@@ -301,6 +301,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     occ = _effect(effects, "aperture_occlusion")
     if occ is not None:
         scale = float(occ.get("opening_scale", 1.0))
+        su, sv = scale * float(occ.get("opening_scale_u", 1.0)), scale * float(occ.get("opening_scale_v", 1.0))
         on = set(ir.lighting[lighting].lamps)
         for o in ir.occluders:
             if occ.get("occluders") is not None and o.id not in occ["occluders"]:
@@ -308,7 +309,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
             hole = None
             if o.type == "aperture_plate" and o.opening_mm is not None:
-                hole = (min(o.opening_mm[0] * scale / 2, half[0]), min(o.opening_mm[1] * scale / 2, half[1]))
+                hole = (min(o.opening_mm[0] * su / 2, half[0]), min(o.opening_mm[1] * sv / 2, half[1]))
             # drawn a hair to the side the normal points to (away from the lamps it shades): an
             # occluder often coincides with a face of a luminaire mesh (BYK: the aperture plate is
             # the cavity's front face) and two coplanar faces z-fight in Cycles, so random parts

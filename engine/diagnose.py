@@ -46,11 +46,14 @@ from typing import Literal
 import numpy as np
 
 from .fit import FitProblem, FitResult, effect_parameter
+from .hypotheses import HYPOTHESES, applicable_hypotheses
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
            "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
            "noise_model"]
 
+#: prefix of a hypothesis (hardware the booth does not declare) among the diagnosis' candidates
+HYPOTHESIS_PREFIX = "hypothesis:"
 #: BIC improvement a suspect needs to count at all (strong evidence on Kass–Raftery's scale).
 SIGNIFICANT = 10.0
 #: Suspects within this many BIC units of the best are tied.
@@ -174,19 +177,34 @@ class Suspect:
     #: the effects this explanation adds (one, or two for a pair) and their fitted parameters
     effects: tuple[str, ...] = ()
     params_by_effect: dict = field(default_factory=dict)
+    #: what was refitted: effect ids, or ``hypothesis:<id>`` for hardware the booth lacks
+    items: tuple[str, ...] = ()
+    #: χ² gained on the illuminance readings and on the white-tile spectrum
+    channel_gain: tuple[float, float] = (0.0, 0.0)
+    #: why the explanation may not be chosen (it gains only on the other channel); '' if it may
+    not_eligible: str = ""
+    #: hypothesis id → booth YAML of the hardware it adds, fitted
+    hardware: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.effects:
             self.effects = tuple(self.effect.split("+"))
         if not self.params_by_effect and len(self.effects) == 1:
             self.params_by_effect = {self.effects[0]: dict(self.params)}
+        if not self.items:
+            self.items = tuple(self.effects)
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "effects": list(self.effects), "rmse_percent_after": round(self.rmse_percent_after, 4),
                 "score": round(self.score, 3), "chi2": round(self.chi2, 3), "n_params": self.n_params,
                 "explains_to_noise": self.explains, "structure_after": _r(self.structure_after),
                 "spectral_rmse_percent_after": _r(self.spectral_rmse_after),
-                "fitted_params": {k: _r(v, 6) for k, v in self.params.items()}}
+                "fitted_params": {k: _r(v, 6) for k, v in self.params.items()},
+                "hypotheses": [i[len(HYPOTHESIS_PREFIX):] for i in self.items if i.startswith(HYPOTHESIS_PREFIX)],
+                "hardware_yaml": self.hardware or None,
+                "chi2_gain_illuminance": _r(self.channel_gain[0], 2),
+                "chi2_gain_spectrum": _r(self.channel_gain[1], 2),
+                "not_eligible": self.not_eligible or None}
 
 
 def _r(x, nd=4):
@@ -479,6 +497,52 @@ def _trend(meas, fit: FitResult) -> list[str]:
     return out
 
 
+def _chi2_parts(fit: FitResult, noise: NoiseModel) -> tuple[float, float]:
+    """χ² of the illuminance readings, and of the white-tile spectrum's *shape* (its relative
+    residual less its mean: a level is what geometry changes too), in noise units."""
+    r = fit.residual_percent / noise.percent if fit.lux_pred is not None else np.zeros(0)
+    sp = fit.spectral_residual_percent
+    sp = np.zeros(0) if sp is None else sp[np.isfinite(sp)] / noise.spectral_percent
+    if sp.size:
+        sp = sp - sp.mean()
+    return float(r @ r), float(sp @ sp)
+
+
+def _channels(item: str) -> tuple[str, ...]:
+    """The residuals an explanation may claim: ``spectral`` for effects and hypotheses that change
+    spectra only, ``spatial`` for geometry; an effect lists both in its ``channels`` attribute
+    when it does both (a diffuser: a plate with a spectral transmittance)."""
+    from .effects.registry import get_effect
+
+    if item.startswith(HYPOTHESIS_PREFIX):
+        return (HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].channel,)
+    cls = get_effect(item)
+    ch = getattr(cls, "channels", None)
+    if ch:
+        return tuple(ch)
+    return ("spectral",) if getattr(cls, "kind", "") == "spectral" else ("spatial",)
+
+
+def _channel(item: str) -> str:
+    """The first channel of :func:`_channels`."""
+    return _channels(item)[0]
+
+
+def _channel_check(items: tuple[str, ...], gain: tuple[float, float]) -> str:
+    """Channel honesty: each explanation must gain more than :data:`SIGNIFICANT` χ² units on a
+    residual it can act on — the illuminance readings (spatial) or the white-tile spectrum's
+    shape (spectral) — so a geometry never wins on a purely spectral residual, nor a filter on
+    a purely spatial one."""
+    out = []
+    names = {"spatial": "the illuminance readings", "spectral": "the white-tile spectrum's shape"}
+    for it in items:
+        ch = _channels(it)
+        if not any(gain[0 if c == "spatial" else 1] > SIGNIFICANT for c in ch):
+            out.append(f"{it} gains only " + " and ".join(
+                f"{gain[0 if c == 'spatial' else 1]:.1f} χ² on {names[c]}" for c in ch))
+    return "; ".join(out)
+
+
 def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = None,
              progress=None, cache: dict | None = None) -> Diagnosis:
     """Refit with each missing effect and rank the suspects (see the module docstring)."""
@@ -517,44 +581,129 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             skipped[eid] = why
         else:
             todo.append(eid)
+    # hardware the file does not declare: tried as hypotheses (engine/hypotheses.py)
+    hyps, _ = applicable_hypotheses(ir, lighting)
+    for H in hyps:
+        if H.effect in effects or (candidates is not None and H.effect not in candidates
+                                   and H.id not in candidates):
+            continue
+        skipped.pop(H.effect, None)
+        todo.append(HYPOTHESIS_PREFIX + H.id)
     ctest = dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
                  level_test=bool(meas.known_output_groups))
+    known_all = bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ())
+    ir_caches: dict = {}
+    base_parts = _chi2_parts(base, noise)
 
-    def refit(eids: tuple[str, ...]) -> Suspect:
-        new_eff, free = effects, base_free
-        for eid in eids:
-            new_eff, free = candidate_config(ir, lighting, new_eff, eid, free, meas.known_output_groups)
-        prob = FitProblem(meas, new_eff, free, noise.percent, noise.spectral_percent, cache,
+    def refit(items: tuple[str, ...]) -> Suspect:
+        cur_ir, new_eff, free = ir, effects, base_free
+        post, hw = [], []
+        for it in items:
+            if it.startswith(HYPOTHESIS_PREFIX):
+                H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
+                hw.append(H)
+                if H.channel == "spectral":
+                    post.append(H)
+                    continue
+                cur_ir, add_eff, add_free = H.augment(cur_ir, lighting, meas.known_output_groups)
+                new_eff = {**new_eff, **add_eff}
+                names = {fp.target for fp in free}
+                free = list(free) + [fp for fp in add_free if fp.target not in names]
+            else:
+                new_eff, free = candidate_config(cur_ir, lighting, new_eff, it, free,
+                                                 meas.known_output_groups)
+        if cur_ir is ir:
+            m, c = meas, cache
+        else:
+            m = replace(meas, ir=cur_ir)
+            c = ir_caches.setdefault(tuple(h.id for h in hw if h.channel != "spectral"), {})
+        prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                           tolerance=SCORING_TOLERANCE)
+        starts = [st for H in hw for st in H.starts()]
+        if starts:
+            # hardware whose parameters have no gradient where the guess puts them (an opening
+            # larger than every path): start from the best of a coarse grid
+            def chi2_at(st):
+                x = np.array([st.get(prob.free[i].target, prob.free[i].initial) for i in prob.nl])
+                r = prob.residuals(x)
+                return float(r @ r)
+            best = min(starts, key=chi2_at)
+            free = [replace(fp, initial=float(best.get(fp.target, fp.initial))) for fp in free]
+            prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
+                              tolerance=SCORING_TOLERANCE)
         fit = prob.solve()
-        bic = fit.chi2 + len(free) * logn
-        by_effect = {eid: {fp.name: fit.values[fp.target] for fp in free
-                           if fp.scope == "effect" and fp.ident == eid} for eid in eids}
+        k = len(free)
+        for H in post:
+            f2 = H.fit_on(prob, fit, known_all)
+            if f2 is None:
+                return None
+            k += sum(1 for fp in f2.free if not fp.linear)
+            fit = f2
+        bic = fit.chi2 + k * logn
+        eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
+                     else i for i in items)
+        by_effect = {}
+        for it, eid in zip(items, eids):
+            if it.startswith(HYPOTHESIS_PREFIX):
+                by_effect[eid] = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]].effect_entry(fit)
+            else:
+                by_effect[eid] = {fp.name: fit.values[fp.target] for fp in free
+                                  if fp.scope == "effect" and fp.ident == eid}
+        shown = {}
+        for it, eid in zip(items, eids):
+            if it.startswith(HYPOTHESIS_PREFIX):
+                shown.update({t.split(".", 1)[1]: v for t, v in fit.values.items()
+                              if t.startswith(f"effect.{eid}.") or t.startswith("hypothesis.")})
+            else:
+                shown.update({f"{eid}.{k_}": v for k_, v in by_effect[eid].items()})
+        if len(items) == 1 and not hw:
+            shown = by_effect[eids[0]]
+        parts = _chi2_parts(fit, noise)
+        gain = (base_parts[0] - parts[0], base_parts[1] - parts[1])
+        why_not = _channel_check(items, gain)
         return Suspect(
             effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
-            n_params=len(free) - len(base_free), explains=consistent_with_noise(fit, **ctest),
+            n_params=k - len(base_free), explains=consistent_with_noise(fit, **ctest),
             structure_after=moran_i(pts, fit.residual_percent) if len(pts) else float("nan"),
-            params=by_effect[eids[0]] if len(eids) == 1 else {f"{e}.{k}": v for e, d in by_effect.items()
-                                                               for k, v in d.items()},
-            fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids, params_by_effect=by_effect)
+            params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
+            params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
+            hardware={H.id: H.hardware_yaml(cur_ir, fit) for H in hw})
 
-    suspects = []
-    for k, eid in enumerate(todo):
-        if progress:
-            progress(k, len(todo), eid)
-        suspects.append(refit((eid,)))
-    suspects.sort(key=lambda s: -s.score)
+    # hardware the file does not declare is hypothesised only when the booth as declared leaves
+    # something to explain: its residual above the noise, or a catalog effect that helps
     consistent = consistent_with_noise(base, **ctest)
+    suspects = []
+    for k, item in enumerate(todo):
+        if item.startswith(HYPOTHESIS_PREFIX) and consistent and not any(
+                x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
+            continue
+        if progress:
+            progress(k, len(todo), item)
+        s_ = refit((item,))
+        if s_ is not None:
+            suspects.append(s_)
+    suspects.sort(key=lambda s: -s.score)
     pairs: list[Suspect] = []
-    helpful = [x for x in suspects if x.score > SIGNIFICANT]
+    eligible = [x for x in suspects if not x.not_eligible]
+    helpful = [x for x in eligible if x.score > SIGNIFICANT]
     if not any(x.explains for x in helpful) and not (consistent and not helpful):
         # no single effect reaches the noise: two together might (search the best few suspects)
-        top = [x.effect for x in (helpful or suspects)[:PAIR_CANDIDATES]]
+        top = [x.items[0] for x in (helpful or eligible)[:PAIR_CANDIDATES]]
+        # and the candidate that explains most of each channel on its own, whatever its total
+        # score: a filter with an unexplained geometry beside it worsens the readings' level
+        for ch, i in (("spatial", 0), ("spectral", 1)):
+            own = [x for x in suspects if _channel(x.items[0]) == ch and x.channel_gain[i] > SIGNIFICANT]
+            if own:
+                best_ch = max(own, key=lambda x: x.channel_gain[i]).items[0]
+                if best_ch not in top:
+                    top.append(best_ch)
         combos = list(combinations(top, 2))
         for k, (a, b) in enumerate(combos):
             if progress:
                 progress(len(todo) + k, len(todo) + len(combos), f"{a}+{b}")
-            pairs.append(refit((a, b)))
+            p_ = refit((a, b))
+            if p_ is not None:
+                pairs.append(p_)
         pairs.sort(key=lambda x: -x.score)
     if progress:
         progress(1, 1, "")
@@ -563,8 +712,8 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
                   refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
     d.consistent = consistent
     d.where = _where(meas, base)
-    d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects],
-                        [(x.effects, x.score, x.explains) for x in pairs])
+    d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects if not x.not_eligible],
+                        [(x.effects, x.score, x.explains) for x in pairs if not x.not_eligible])
     d.confidence = _confidence(d, base_bic, noise)
     _explain(d, meas, booth_effects, noise)
     return d
@@ -608,7 +757,7 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidenc
     same decision rule (:func:`_decide`) is applied to each resample.
     """
     v = d.verdict
-    hyps = d.suspects + d.pairs
+    hyps = [x for x in d.suspects + d.pairs if not x.not_eligible]
     by_name = {x.effects: x for x in hyps}
     winner = by_name.get(v.effects) if v.kind == "missing" else (
         by_name.get(v.alternatives[0]) if v.kind == "ambiguous" else (
@@ -661,7 +810,7 @@ def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> No
     if share is not None:
         d.explanation.append(f"the declared model uncertainty ({noise.model_percent:g} %) covers "
                              f"{100 * share:.0f} % of the residual variance (RMSE {base.rmse_percent:.2f} %)")
-    helpful = [s for s in suspects if s.score > SIGNIFICANT]
+    helpful = [s for s in suspects if s.score > SIGNIFICANT and not s.not_eligible]
     if v.kind == "none":
         d.explanation.append(
             f"the residual is at the noise level (χ²/dof = {red:.2f} with noise {noise.percent:.2g} %) "
@@ -672,7 +821,8 @@ def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> No
         d.explanation.append(
             f"χ²/dof = {red:.2f} is within the noise, but {helpful[0].effect} lowers the BIC by "
             f"{helpful[0].score:.1f}: the residual has structure that noise does not explain")
-    by_name = {x.effects: x for x in suspects + d.pairs}
+    by_name = {x.effects: x for x in suspects + d.pairs if x.not_eligible}
+    by_name.update({x.effects: x for x in suspects + d.pairs if not x.not_eligible})
     if v.kind == "unexplained":
         d.explanation.append(f"χ²/dof = {red:.2f}: the residual is above the noise ({noise.percent:.2g} %), "
                              "and no effect, nor any pair of the best suspects, brings it to the noise")
@@ -721,7 +871,7 @@ def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> No
         eff = {k: dict(v_ or {}) for k, v_ in booth_effects.items()}
         for e, params in best.params_by_effect.items():
             eff[e] = dict(params)
-        d.snippet = effects_snippet(eff, highlight=set(v.effects))
+        d.snippet = "".join(best.hardware.values()) + effects_snippet(eff, highlight=set(v.effects))
     if base.spectral_rmse_percent is not None:
         alts = [by_name[a] for a in (v.alternatives if v.kind == "ambiguous" else (v.effects,))]
         sp = [s for s in alts if s.spectral_rmse_after is not None]

@@ -258,8 +258,8 @@ class ReferenceEngine:
             half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
             hole = None
             if o.type == "aperture_plate" and o.opening_mm is not None:
-                hole = (min(o.opening_mm[0] * occ.opening_scale, o.size_mm[0]) / 2,
-                        min(o.opening_mm[1] * occ.opening_scale, o.size_mm[1]) / 2)
+                hole = (min(o.opening_mm[0] * occ.opening_scale * occ.opening_scale_u, o.size_mm[0]) / 2,
+                        min(o.opening_mm[1] * occ.opening_scale * occ.opening_scale_v, o.size_mm[1]) / 2)
             out.append(_Rect(o.centre_mm, o.normal, o.u_axis, half, hole))
         return out
 
@@ -285,6 +285,11 @@ class ReferenceEngine:
                 elif ap.sigma_deg is not None:
                     prof = _profile({"type": "gaussian", "sigma_deg": ap.sigma_deg})
             spec = lamp.intensity_scale_W_sr_nm * lamp.spd.array_1nm * level
+            sh = self.fx.get("lamp_spectrum_shift")
+            if sh is not None and (sh.lamps is None or lamp.id in sh.lamps):
+                from .effects.catalog import shifted_spectrum_1nm
+
+                spec = shifted_spectrum_1nm(spec, sh.shift_nm, sh.tilt)
             if sf is not None and (sf.lamps is None or lamp.id in sf.lamps):
                 fid = sf.filter or lamp.filter
                 if fid:

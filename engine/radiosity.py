@@ -246,7 +246,8 @@ def transport_bodies(ctx, p) -> list[tuple[str, object]]:
         # the declared openings: a fitted opening_scale acts on the lamps' light (the effect's
         # own path factors), not on the far weaker inter-reflected light, so a fit that moves
         # it does not redo the transport's visibility at every step
-        occ = ctx.params("aperture_occlusion").model_copy(update={"opening_scale": 1.0})
+        occ = ctx.params("aperture_occlusion").model_copy(update={"opening_scale": 1.0, "opening_scale_u": 1.0,
+                                                                     "opening_scale_v": 1.0})
         for o, rect in _occluder_rects(ir, occ):
             if o.mount == "booth":
                 out.append((f"occluder:{o.id}", rect))

@@ -239,9 +239,9 @@ class MitsubaTruth:
                     out.append(f"occluder {o.id!r} blocks only lamps {list(o.lamps)}: real geometry "
                                "blocks every lamp (pass allow_lamp_specific_occluders=True to accept that)")
         if "aperture_occlusion" in fx:
-            opening_scale = float(fx["aperture_occlusion"].get("opening_scale", 1.0) or 1.0)
-            if opening_scale != 1.0:
-                out.append("aperture_occlusion opening_scale != 1 has no Mitsuba representation")
+            for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
+                if float(fx["aperture_occlusion"].get(k, 1.0) or 1.0) != 1.0:
+                    out.append(f"aperture_occlusion {k} != 1 has no Mitsuba representation")
         if "diffuser" in fx and ir.diffuser is not None:
             d, p = ir.diffuser, fx["diffuser"]
             sc = d.scattering

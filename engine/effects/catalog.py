@@ -40,6 +40,8 @@ __all__ = [
     "ApertureOcclusionEffect",
     "TubeEndFalloffEffect",
     "SpectralFilterEffect",
+    "LampSpectrumShiftEffect",
+    "shifted_spectrum_1nm",
     "DetectorCosineErrorEffect",
     "ReflectorEffect",
     "f2_linear_coefficient",
@@ -206,6 +208,9 @@ class DiffuserEffect(PhysicalEffect):
     id = "diffuser"
     summary = "A plate below the lamps transmits and scatters their light."
     kind = "geometric"
+    #: residuals it may explain in the diagnosis: its light's distribution and, through the
+    #: plate's spectral transmittance, the spectrum
+    channels = ("spatial", "spectral")
     order = 50
     fit_parameters = {"diffuse_fraction": (0.0, 1.0)}
     fit_initial = {"diffuse_fraction": 0.5}
@@ -306,8 +311,8 @@ def _occluder_rects(ir, p):
         half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
         hole = None
         if o.type == "aperture_plate" and o.opening_mm is not None:
-            hole = (min(o.opening_mm[0] * p.opening_scale / 2, half[0]),
-                    min(o.opening_mm[1] * p.opening_scale / 2, half[1]))
+            hole = (min(o.opening_mm[0] * p.opening_scale * p.opening_scale_u / 2, half[0]),
+                    min(o.opening_mm[1] * p.opening_scale * p.opening_scale_v / 2, half[1]))
         out.append((o, Rectangle(np.asarray(o.centre_mm, float), n, u, half, hole)))
     return out
 
@@ -324,6 +329,10 @@ class ApertureOcclusionEffect(PhysicalEffect):
     class Params(EffectParams):
         occluders: list[Identifier] | None = Field(None, description="Occluders used (default: all).")
         opening_scale: float = Field(1.0, gt=0, le=5, description="Multiplier on aperture openings.")
+        opening_scale_u: float = Field(1.0, gt=0, le=5, description="Further multiplier on the openings' "
+                                       "u extent (fitted for an undeclared aperture, see hypotheses).")
+        opening_scale_v: float = Field(1.0, gt=0, le=5, description="Further multiplier on the openings' "
+                                       "v extent.")
 
     @classmethod
     def applicable(cls, ir, lighting):
@@ -334,7 +343,7 @@ class ApertureOcclusionEffect(PhysicalEffect):
 
     @staticmethod
     def path_factors(ctx, p, es, rx):
-        key = ("occ", p.opening_scale, tuple(p.occluders or ()))
+        key = ("occ", p.opening_scale, p.opening_scale_u, p.opening_scale_v, tuple(p.occluders or ()))
         rects = ctx.cache.get(key)
         if rects is None:
             rects = ctx.cache[key] = _occluder_rects(ctx.ir, p)
@@ -419,6 +428,56 @@ class SpectralFilterEffect(PhysicalEffect):
             return es
         t = ctx.ir.filters[fid].transmittance.array_1nm
         return es.with_(spectrum_1nm=es.spectrum_1nm * t, spectral_key=es.spectral_key + (f"filter:{fid}",))
+
+
+# --------------------------------------------------------------------------- lamp spectrum shift
+
+def shifted_spectrum_1nm(values_1nm, shift_nm: float, tilt: float = 0.0) -> np.ndarray:
+    """A 1 nm spectrum (360–830 nm) moved by ``shift_nm`` and tilted.
+
+    .. math:: S'(λ) = S(λ − Δλ)\\,\\bigl(1 + t\\,(λ − 555)/200\\bigr)
+
+    ``Δλ > 0`` moves every feature to longer wavelengths (linear interpolation; zero outside
+    the sampled range); the tilt ``t`` (clipped so the factor stays ≥ 0) is the slow change of a
+    lamp's colour with age.  Δλ = 0 and t = 0 return the spectrum unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = np.zeros(471); s[200] = 1.0                 # a line at 560 nm
+    >>> int(np.argmax(shifted_spectrum_1nm(s, 3.0)))    # now at 563 nm
+    203
+    """
+    v = np.asarray(values_1nm, float)
+    wl = np.arange(360.0, 360.0 + v.size)
+    out = np.interp(wl - shift_nm, wl, v, left=0.0, right=0.0) if shift_nm else v.copy()
+    if tilt:
+        out = out * np.clip(1.0 + tilt * (wl - 555.0) / 200.0, 0.0, None)
+    return out
+
+
+@register_effect
+class LampSpectrumShiftEffect(PhysicalEffect):
+    id = "lamp_spectrum_shift"
+    summary = "The lamps' spectrum differs from the declared one: a wavelength shift and a tilt (ageing)."
+    kind = "spectral"
+    order = 29
+    fit_parameters = {"shift_nm": (-15.0, 15.0), "tilt": (-0.5, 0.5)}
+    fit_initial = {"shift_nm": 0.0, "tilt": 0.0}
+    backends = frozenset({"forward", "reference"})
+
+    class Params(_LampSelection):
+        shift_nm: float = Field(0.0, ge=-50, le=50, description="Wavelength shift of the whole spectrum "
+                                "(positive: toward the red).")
+        tilt: float = Field(0.0, ge=-1, le=1, description="Relative slope of a linear tilt per 200 nm, "
+                            "around 555 nm (positive: redder).")
+
+    @staticmethod
+    def modify_emitters(ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        if not _selected(p, lamp.id) or (p.shift_nm == 0.0 and p.tilt == 0.0):
+            return es
+        return es.with_(spectrum_1nm=shifted_spectrum_1nm(es.spectrum_1nm, p.shift_nm, p.tilt),
+                        spectral_key=es.spectral_key + (f"shift:{p.shift_nm:.6g}:{p.tilt:.6g}",))
 
 
 # --------------------------------------------------------------------------- meter cosine error

@@ -36,6 +36,10 @@ Diagnosis metadata (class attributes):
     ``{param: (low, high)}`` freed when the diagnosis tries the effect.
 ``applicable(ir, lighting) -> str | None``
     ``None`` when the booth has what the effect needs, else the reason.
+``channels``
+    the residuals the effect may explain: ``("spatial",)`` by default, ``("spectral",)`` for
+    ``kind = "spectral"``, both for an effect that does both (a diffuser's spectral
+    transmittance).  A candidate that gains only on another channel is not chosen.
 """
 
 from __future__ import annotations

@@ -1,0 +1,89 @@
+"""Hypotheses for undeclared hardware: their building blocks against closed forms, and the YAML
+they write against the booth schema and compiler."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lbscene.engine.effects.catalog import shifted_spectrum_1nm
+from lbscene.engine.hypotheses import (HYPOTHESES, AperturePlateHypothesis, DiffuserPlateHypothesis,
+                                       applicable_hypotheses, filter_basis)
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def test_filter_basis_is_a_partition_of_unity_over_the_measured_range():
+    B = filter_basis(12)
+    assert B.shape == (471, 12)
+    assert np.allclose(B.sum(axis=1), 1.0)
+    assert (B >= 0).all()
+    # a constant log-transmittance is exactly representable: T = e^c
+    assert np.allclose(np.exp(B @ np.full(12, np.log(0.5))), 0.5)
+
+
+def test_spectrum_shift_moves_a_line_and_keeps_its_area():
+    s = np.zeros(471)
+    s[200] = 1.0                                            # 560 nm
+    out = shifted_spectrum_1nm(s, 2.5)
+    assert out.sum() == pytest.approx(1.0)
+    centroid = (np.arange(471) * out).sum() / out.sum()
+    assert 360 + centroid == pytest.approx(562.5)
+    # the tilt is a ramp through 1 at 555 nm
+    flat = shifted_spectrum_1nm(np.ones(471), 0.0, 0.2)
+    assert flat[195] == pytest.approx(1.0) and flat[395] == pytest.approx(1.2)
+
+
+def test_hypotheses_apply_only_to_hardware_the_booth_lacks():
+    from lbscene.engine.compile import compile_booth
+
+    full = compile_booth(DATA / "hidden-effect-booth" / "booth.yaml")
+    todo, skipped = applicable_hypotheses(full, "FL")
+    assert todo == [] and set(skipped) == set(HYPOTHESES)
+    bare = compile_booth(DATA / "validation" / "walls-05" / "booth.yaml")
+    todo, _ = applicable_hypotheses(bare, "L")
+    assert {h.id for h in todo} == set(HYPOTHESES)
+
+
+def _fake_fit(values, stderr=None):
+    class F:
+        pass
+    f = F()
+    f.values, f.stderr = values, stderr or {}
+    return f
+
+
+@pytest.mark.parametrize("H,values", [
+    (DiffuserPlateHypothesis, {"effect.diffuser.diffuse_fraction": 0.37,
+                               "effect.diffuser.transmittance_scale": 0.8}),
+    (AperturePlateHypothesis, {"effect.aperture_occlusion.opening_scale_u": 0.9,
+                               "effect.aperture_occlusion.opening_scale_v": 1.3}),
+])
+def test_plate_hypothesis_yaml_validates_and_compiles_to_the_fitted_hardware(H, values, tmp_path):
+    from lbscene.engine.compile import compile_booth
+
+    src = DATA / "validation" / "walls-05"
+    ir = compile_booth(src / "booth.yaml")
+    aug, eff, free = H.augment(ir, "L", ["tube_front", "tube_rear"])
+    assert {fp.target for fp in free} <= set(values)
+    text = H.hardware_yaml(aug, _fake_fit(values))
+    booth = tmp_path / "b"
+    shutil.copytree(src, booth)
+    f = booth / "booth.yaml"
+    body = re.sub(r"(?m)^effects:\n(?:[ \t]+.*\n?)*", "", f.read_text())
+    f.write_text(body + text + "effects:\n  interreflection: {}\n  " + H.effect + ": {}\n")
+    out = compile_booth(f)
+    if H is DiffuserPlateHypothesis:
+        d = out.diffuser
+        assert d.scattering == {"type": "lambertian", "diffuse_fraction": 0.37}
+        assert d.z_mm == pytest.approx(620 - 13 - 20)
+        assert np.allclose(d.transmittance.array_1nm, 0.8)
+    else:
+        plate = next(o for o in out.occluders if o.type == "aperture_plate")
+        # the lamps' footprint (600 + 2·13 by 240 + 2·13) plus 20 mm each side, scaled
+        assert plate.opening_mm == pytest.approx((666 * 0.9, 306 * 1.3))
+        assert len(out.occluders) == 5      # plate + four black cavity sides
