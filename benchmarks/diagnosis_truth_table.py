@@ -35,8 +35,8 @@ def main() -> int:
     T = _cases()
     want = set(a.cases.split(",")) if a.cases else None
     print("| case | removed from the booth file | output | verdict | allowed | RMSE before % | "
-          "RMSE after edit % | recurrence | time s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "RMSE after edit % | recurrence | diagnosis s | compare s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for c in T.CASES:
         if want and c.id not in want:
             continue
@@ -46,7 +46,7 @@ def main() -> int:
         rec = "—" if r["recurrence"] is None else f"{r['recurrence']:.3f}"
         print(f"| {c.id} ({c.scene}, {c.grid}) | {', '.join(c.remove) or 'nothing'} | "
               f"{'known' if c.known else 'fitted'} | {r['verdict']} | {'yes' if r['allowed'] else 'NO'} | "
-              f"{r['rmse_before']:.2f} | {after} | {rec} | {r['seconds']:.1f} |", flush=True)
+              f"{r['rmse_before']:.2f} | {after} | {rec} | {r['seconds']:.1f} | {r['total_seconds']:.1f} |", flush=True)
     return 0
 
 

@@ -54,6 +54,9 @@ __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "
 
 #: prefix of a hypothesis (hardware the booth does not declare) among the diagnosis' candidates
 HYPOTHESIS_PREFIX = "hypothesis:"
+#: forward-model cache stores keyed by the content of their geometry, shared by the refits of
+#: augmented booths (hypotheses) with the booth's own
+SHARED_GEOMETRY_STORES = ("_pairs", ("_memo", "hit"))
 #: BIC improvement a suspect needs to count at all (strong evidence on Kass–Raftery's scale).
 SIGNIFICANT = 10.0
 #: Suspects within this many BIC units of the best are tied.
@@ -616,7 +619,12 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             m, c = meas, cache
         else:
             m = replace(meas, ir=cur_ir)
-            c = ir_caches.setdefault(tuple(h.id for h in hw if h.channel != "spectral"), {})
+            key = tuple(h.id for h in hw if h.channel != "spectral")
+            if key not in ir_caches:
+                # content-keyed geometry (pair geometry of emitter points and receivers, occlusion
+                # fractions of a rectangle) is the same whatever booth it came from: shared
+                ir_caches[key] = {k: cache.setdefault(k, {}) for k in SHARED_GEOMETRY_STORES}
+            c = ir_caches[key]
         prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                           tolerance=SCORING_TOLERANCE)
         starts = [st for H in hw for st in H.starts()]

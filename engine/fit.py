@@ -425,8 +425,9 @@ class FitProblem:
             refl = self.meas.tile.reflectance_1nm
             T1 = []
             for g in self.groups:
-                spec = pred.spectral_1nm({h: (1.0 if h == g else 0.0) for h in self.groups})
-                T1.append(spec[self.tile_row] * refl / np.pi)
+                spec = pred.spectral_1nm({h: (1.0 if h == g else 0.0) for h in self.groups},
+                                         rows=[self.tile_row])
+                T1.append(spec[0] * refl / np.pi)
             T1 = np.stack(T1)
             T = self.ir.grid.integrate(T1)
         out = (A, T, T1, eff, lo)

@@ -219,17 +219,22 @@ class Prediction:
         return sum((scales.get(g, 1.0) * v for g, v in self.bands_by_group().items()),
                    np.zeros((self.n, B)))
 
-    def spectral_1nm(self, scales: dict[str, float] | None = None) -> np.ndarray:
-        """Spectral irradiance on the 1 nm reference grid, (M, 471)."""
+    def spectral_1nm(self, scales: dict[str, float] | None = None, rows=None) -> np.ndarray:
+        """Spectral irradiance on the 1 nm reference grid, (M, 471); only ``rows`` (indices)
+        if given."""
         scales = scales or {}
         _, _, P = spectral_tables(self.grid)
-        out = np.zeros((self.n, P.shape[0]))
+        sel = slice(None) if rows is None else np.asarray(rows, int)
+        n = self.n if rows is None else len(sel)
+        out = np.zeros((n, P.shape[0]))
         for t in self.terms:
             s = scales.get(t.group, 1.0)
+            if not s:
+                continue
             if t.geo is not None:
-                out += s * np.outer(t.geo, t.spectrum_1nm)
+                out += s * np.outer(t.geo[sel], t.spectrum_1nm)
             if t.geo_bands is not None:
-                out += s * (t.geo_bands @ P.T) * t.spectrum_1nm[None, :]
+                out += s * (t.geo_bands[sel] @ P.T) * t.spectrum_1nm[None, :]
         return out
 
 
@@ -394,7 +399,7 @@ class ForwardModel:
                 else:
                     theta = np.arccos(np.clip(ue @ es.aim, -1.0, 1.0))
         out = (g0, cos_rx, theta)
-        if len(store) >= 64:
+        if len(store) >= 128:
             store.pop(next(iter(store)))
         store[key] = out
         return out

@@ -53,6 +53,8 @@ meshes or bodies (the occluders' own effect does that).
 from __future__ import annotations
 
 import hashlib
+import json
+import math
 
 import numpy as np
 
@@ -81,6 +83,8 @@ GATHER_FINE = 12
 NEAR_SUB = 3
 #: box patches are split while their diagonal exceeds this times their distance to a lit lamp …
 REFINE_RATIO = 1.5
+#: relative step to which fitted aperture openings are rounded for the light reaching the patches
+OPENING_STEP = 0.02
 #: … down to this size (mm)
 REFINE_MIN_MM = 15.0
 #: segments sampled between two patches whose mutual view a body (lamp, occluder) may cross
@@ -158,6 +162,15 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
     Pall = np.concatenate(done_p)
     return Patches(Pall, np.concatenate(done_n), quad_areas(Pall), np.concatenate(done_m),
                    np.concatenate(done_s))
+
+
+def _changes_lamp_light(effect_id: str) -> bool:
+    """Whether an effect changes the light lamps send to surfaces (any hook but a meter's)."""
+    from .effects.registry import get_effect
+
+    cls = get_effect(effect_id)
+    return any(getattr(cls, h, None) is not None for h in
+               ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources"))
 
 
 def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None) -> Patches:
@@ -367,12 +380,35 @@ class RadiosityTransport:
         w = np.concatenate(w_l)
         nrm = np.concatenate(nrm_l)
         # nudge off the surface so paths leaving a patch never count it as an occluder
-        terms = self.model.first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
-                                             pair_factor=self._lamp_visibility())
+        terms = self._transport_model().first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
+                                                          pair_factor=self._lamp_visibility())
         E0 = np.zeros((len(patches), len(terms)))
         for k, t in enumerate(terms):
             E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
         return terms, E0
+
+    def _transport_model(self):
+        """The model whose lamp light lights the patches: this one, except that fitted aperture
+        openings are rounded to :data:`OPENING_STEP` (relative).  Light reaching the walls
+        changes smoothly with an opening, so a fit that moves it re-evaluates the occlusion of
+        the patches only when it moves by a step, not at every evaluation; the readings' direct
+        light always sees the exact opening."""
+        m = self.model
+        ap = m.effects.get("aperture_occlusion")
+        if not ap:
+            return m
+        step = math.log1p(OPENING_STEP)
+        q = dict(ap)
+        for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
+            v = float(ap.get(k, 1.0) or 1.0)
+            q[k] = float(math.exp(round(math.log(v) / step) * step))
+        if all(q[k] == float(ap.get(k, 1.0) or 1.0) for k in ("opening_scale", "opening_scale_u",
+                                                               "opening_scale_v")):
+            return m
+        from .forward import ForwardModel
+
+        return ForwardModel(m.ir, m.lighting, effects={**m.effects, "aperture_occlusion": q},
+                            lamp_overrides=m.ctx.lamp_overrides, options=m.options, cache=m.ctx.cache)
 
     def _F_past_bodies(self, F: np.ndarray) -> np.ndarray:
         """``F`` times the fraction of each pair's mutual view that no body crosses.
@@ -554,9 +590,24 @@ class RadiosityTransport:
                              limit=32)
 
     def _first_order(self):
-        """First-order light on the patches, once per model (parameters fixed)."""
+        """First-order light on the patches, once per model (parameters fixed), and shared by
+        models whose lamp light is the same: a fit that moves only a meter's response, or
+        repeats a point, reuses it (keyed by the parameters of every effect that changes
+        lamp light, the lamp overrides and the lighting)."""
         if self._terms is None:
-            self._terms, self._E0 = self._first_order_at_patches()
+            tm = self._transport_model()
+            lamp_light = {eid: p for eid, p in tm.effects.items() if _changes_lamp_light(eid)}
+            k = (self._rho_key[:4], self._body_sig, tm.lighting,
+                 json.dumps(lamp_light, sort_keys=True, default=str),
+                 json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str))
+            store = self.ctx.cache.setdefault("_rad_first", {})
+            hit = store.get(k)
+            if hit is None:
+                hit = self._first_order_at_patches()
+                if len(store) >= 16:
+                    store.pop(next(iter(store)))
+                store[k] = hit
+            self._terms, self._E0 = hit
         return self._terms, self._E0
 
     def _band_classes(self):

@@ -161,7 +161,7 @@ def run_case(case: Case, tmp: Path) -> dict:
     secs = time.perf_counter() - t0
     row = {"case": case.id, "verdict": str(res.verdict), "allowed": case.allows(res.verdict),
            "rmse_before": res.fit.rmse_percent, "rmse_after": None, "verdict_after": None,
-           "seconds": secs, "recurrence": res.diagnosis.confidence.recurrence if res.diagnosis.confidence else None,
+           "seconds": res.timing_s.get("diagnose", secs), "total_seconds": secs, "recurrence": res.diagnosis.confidence.recurrence if res.diagnosis.confidence else None,
            "snippet": res.diagnosis.snippet}
     if res.diagnosis.snippet:
         add_to_booth(tmp / "booth", res.diagnosis.snippet)
