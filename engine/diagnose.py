@@ -640,6 +640,8 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                               tolerance=SCORING_TOLERANCE)
         fit = prob.solve()
+        if cur_ir is not ir:
+            fit.ir = cur_ir          # the booth this explanation predicts with (plan)
         k = len(free)
         for H in post:
             f2 = H.fit_on(prob, fit, known_all)

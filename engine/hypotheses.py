@@ -441,6 +441,14 @@ class SmoothFilterHypothesis(Hypothesis):
         res.hypothesis_data = {"transmittance_1nm": T, "log_sigma_1nm": sig, "known": known}
         # the parameters held from the fit it was added to keep their values
         res.values = {**fit.values, **res.values}
+        # the fitted filter as booth hardware: the booth of this explanation, for whoever
+        # predicts with it (plan)
+        from .ir import IRFilter, IRSpectrum
+
+        base_ir = getattr(fit, "ir", None) or problem.ir
+        filt = IRFilter(id=FITTED_FILTER_ID, transmittance=IRSpectrum.from_1nm(T, base_ir.grid))
+        res.ir = base_ir.model_copy(update={"filters": {**base_ir.filters, FITTED_FILTER_ID: filt}})
+        res.effects = {**res.effects, cls.effect: {"filter": FITTED_FILTER_ID}}
         return res
 
     @classmethod

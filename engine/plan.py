@@ -161,7 +161,9 @@ def plan_measurements(meas, fits: dict, noise_percent: float, *, max_points: int
         P, N, kinds = P[keep], N[keep], [k for k, f in zip(kinds, keep) if f]
     pred = {}
     for name, fit in fits.items():
-        fm = ForwardModel(meas.ir, meas.lighting, effects=fit.effects, lamp_overrides=fit.lamp_overrides)
+        # an explanation that adds hardware (a hypothesis) predicts with its own booth
+        fm = ForwardModel(getattr(fit, "ir", None) or meas.ir, meas.lighting, effects=fit.effects,
+                          lamp_overrides=fit.lamp_overrides)
         pred[name] = fm.illuminance_lx(P, N, True, scales=fit.scales)
     # a reading no candidate can predict sanely is never proposed (a fitted parameter far outside
     # what the data span can extrapolate wildly off the measured grid)

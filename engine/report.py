@@ -171,9 +171,13 @@ def render_report(res) -> str:
     if d is not None:
         parts.append("<h2>Suspects</h2>" + _table(
             ["effect", "RMSE after %", "score (ΔBIC)", "extra params", "explains to noise",
-             "structure (Moran's I)", "spectral RMSE after %", "fitted"],
-            [[s.effect, _f(s.rmse_percent_after), _f(s.score, 4), s.n_params,
+             "structure (Moran's I)", "spectral RMSE after %", "χ² gain: readings / spectrum shape",
+             "fitted"],
+            [[s.effect + "".join(f" ({i})" for i in s.items if i.startswith("hypothesis:")),
+              _f(s.rmse_percent_after), _f(s.score, 4), s.n_params,
               "yes" if s.explains else "no", _f(s.structure_after), _f(s.spectral_rmse_after),
+              f"{s.channel_gain[0]:.0f} / {s.channel_gain[1]:.0f}"
+              + (f" — not eligible: {s.not_eligible}" if s.not_eligible else ""),
               ", ".join(f"{k}={v:.4g}" for k, v in s.params.items())] for s in d.suspects]))
         if d.skipped:
             parts.append("<p class=meta>not tested: " + e("; ".join(f"{k} ({v})" for k, v in d.skipped.items()))

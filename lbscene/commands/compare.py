@@ -78,12 +78,20 @@ def print_text(res, console) -> None:
         return
     if d.suspects:
         t = Table(title="suspects (refit with each effect the booth does not enable)", title_justify="left")
-        for c in ("effect", "RMSE after %", "score ΔBIC", "+params", "to noise", "fitted"):
+        for c in ("effect", "RMSE after %", "score ΔBIC", "+params", "to noise", "χ² gain lx / spectrum",
+                  "fitted"):
             t.add_column(c, justify="left" if c in ("effect", "fitted") else "right")
         for s in d.suspects:
-            t.add_row(s.effect, f"{s.rmse_percent_after:.2f}", f"{s.score:.1f}", str(s.n_params),
-                      "yes" if s.explains else "no", ", ".join(f"{k}={v:.4g}" for k, v in s.params.items()))
+            name = s.effect + "".join(f" ({i})" for i in s.items if i.startswith("hypothesis:"))
+            t.add_row(name, f"{s.rmse_percent_after:.2f}", f"{s.score:.1f}", str(s.n_params),
+                      "yes" if s.explains else "no",
+                      f"{s.channel_gain[0]:.0f} / {s.channel_gain[1]:.0f}"
+                      + (" not eligible" if s.not_eligible else ""),
+                      ", ".join(f"{k}={v:.4g}" for k, v in s.params.items()))
         console.print(t)
+        for s in d.suspects:
+            if s.not_eligible:
+                console.print(f"not eligible: {s.not_eligible}", style="dim")
     if d.skipped:
         console.print("not tested: " + "; ".join(f"{k} ({v})" for k, v in d.skipped.items()), style="dim")
     if d.held:
