@@ -24,6 +24,7 @@ def _cases():
     spec = importlib.util.spec_from_file_location(
         "diagnosis_on_truth", REPO / "tests" / "engine" / "test_diagnosis_on_truth.py")
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod           # dataclasses look their module up while it loads
     spec.loader.exec_module(mod)
     return mod
 

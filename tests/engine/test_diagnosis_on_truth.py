@@ -194,3 +194,31 @@ def test_edit_removes_what_it_says():
                 ("effect:spectral_filter", "section:filters", "lamp:filter"))
     assert "filters:" not in out and "filter: dip" not in out and "spectral_filter" not in out
     assert "interreflection: {}" in out
+
+
+@pytest.mark.slow
+def test_planned_readings_rendered_by_the_truth_narrow_a_tie(tmp_path):
+    """Where the grid cannot tell (an aperture's level drop, lamp output known), the verdict is a
+    tie that lists the truth; the readings ``plan`` proposes, rendered by Mitsuba from the true
+    booth, narrow it and keep the truth in it."""
+    from lbscene.engine.compare import run_compare
+    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.forward_synthetic import write_illuminance_csv
+    from lbscene.engine.truth_mitsuba import MitsubaTruth
+
+    case = next(c for c in CASES if c.id == "aperture-declared-known")
+    m = make_case(case, tmp_path)
+    res = run_compare(m, do_plan=True)
+    assert res.verdict.kind == "ambiguous" and "aperture_occlusion" in res.verdict.tied
+    P = np.array([p.position_mm for p in res.plan.points])
+    N = np.array([p.normal for p in res.plan.points])
+    truth = MitsubaTruth(compile_booth(case.folder / "booth.yaml"), "L", spp=65536, passes=4, seed=4242)
+    E = truth.illuminance_with_error_lx(P, N, target_rel_error=0.003, max_passes=64).illuminance_lx
+    E = E * (1.0 + NOISE_PERCENT / 100.0 * np.random.default_rng(1).standard_normal(len(E)))
+    write_illuminance_csv(m.parent / "planned.csv", P, E, N)
+    m.write_text(m.read_text().replace("  - path: grid.csv", "  - path: grid.csv\n  - path: planned.csv"))
+    res2 = run_compare(m)
+    assert res2.verdict.kind in ("missing", "ambiguous")
+    named = res2.verdict.effects if res2.verdict.kind == "missing" else tuple(res2.verdict.tied)
+    assert "aperture_occlusion" in named
+    assert len(named) < len(res.verdict.tied)
