@@ -11,7 +11,6 @@ seeded meter noise.  Prints a Markdown table.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 import tempfile
 from pathlib import Path
@@ -19,14 +18,11 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from _testcases import load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
+
 
 def _cases():
-    spec = importlib.util.spec_from_file_location(
-        "diagnosis_on_truth", REPO / "tests" / "engine" / "test_diagnosis_on_truth.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod           # dataclasses look their module up while it loads
-    spec.loader.exec_module(mod)
-    return mod
+    return load_test_module("tests/engine/test_diagnosis_on_truth.py", "diagnosis_on_truth")
 
 
 def main() -> int:

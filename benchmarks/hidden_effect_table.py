@@ -12,7 +12,6 @@ imported, not copied): truth from the brute-force Monte Carlo reference engine, 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import shutil
 import sys
 import tempfile
@@ -22,13 +21,11 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from _testcases import load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
+
 
 def _helpers():
-    spec = importlib.util.spec_from_file_location(
-        "hidden_effects", REPO / "tests" / "engine" / "test_hidden_effects.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_test_module("tests/engine/test_hidden_effects.py", "hidden_effects")
 
 
 def row(H, truth: str, known: bool) -> list[str]:

@@ -148,7 +148,7 @@ class Hypothesis(ABC):
 
     Subclasses declare ``id``, the catalog ``effect`` it turns on, its ``channel`` (``spatial``
     or ``spectral``: which residuals it may claim, see :mod:`lbscene.engine.diagnose`) and a
-    one-line ``summary``; they implement :meth:`applicable` and :meth:`hardware_yaml`, and
+    one-line ``summary``; they implement :meth:`declared` and :meth:`hardware_yaml`, and
     either :meth:`augment` (plates: refitted through the forward model) or :meth:`fit_on`
     (a spectral factor fitted on top of a fit).
     """
@@ -159,9 +159,17 @@ class Hypothesis(ABC):
     summary: ClassVar[str]
 
     @classmethod
-    @abstractmethod
     def applicable(cls, ir, lighting: str) -> str | None:
         """``None`` when the hypothesis can be tried (the booth lacks the hardware), else why not."""
+        if not _lamps_on(ir, lighting):
+            return "no lamp is on"
+        return cls.declared(ir, lighting)
+
+    @classmethod
+    @abstractmethod
+    def declared(cls, ir, lighting: str) -> str | None:
+        """Why the booth's own hardware makes the hypothesis moot (the catalog effect tests it),
+        or ``None``."""
 
     @classmethod
     @abstractmethod
@@ -204,12 +212,8 @@ class DiffuserPlateHypothesis(PlateHypothesis):
     summary = "a diffusing plate under the lamps"
 
     @classmethod
-    def applicable(cls, ir, lighting):
-        if ir.diffuser is not None:
-            return "the booth declares a diffuser (the diffuser effect tests it)"
-        if not _lamps_on(ir, lighting):
-            return "no lamp is on"
-        return None
+    def declared(cls, ir, lighting):
+        return "the booth declares a diffuser (the diffuser effect tests it)" if ir.diffuser else None
 
     @classmethod
     def augment(cls, ir, lighting, known_groups):
@@ -259,12 +263,10 @@ class AperturePlateHypothesis(PlateHypothesis):
     OCCLUDER_ID = "aperture"
 
     @classmethod
-    def applicable(cls, ir, lighting):
+    def declared(cls, ir, lighting):
         on = {lp.id for lp in _lamps_on(ir, lighting)}
         if any(o.lamps is None or on & set(o.lamps) for o in ir.occluders):
             return "the booth declares occluders (the aperture_occlusion effect tests them)"
-        if not on:
-            return "no lamp is on"
         return None
 
     @classmethod
@@ -417,11 +419,9 @@ class SmoothFilterHypothesis(Hypothesis):
     summary = "a spectral filter in front of the lamps"
 
     @classmethod
-    def applicable(cls, ir, lighting):
+    def declared(cls, ir, lighting):
         if any(lp.filter for lp in _lamps_on(ir, lighting)):
             return "the lamps that are on name a filter (the spectral_filter effect tests it)"
-        if not _lamps_on(ir, lighting):
-            return "no lamp is on"
         return None
 
     @classmethod
