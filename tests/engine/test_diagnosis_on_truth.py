@@ -77,6 +77,9 @@ CASES = [
     Case("filter-undeclared-fitted", "filter-dip", "a3",
          ("effect:spectral_filter", "section:filters", "lamp:filter"), False,
          ("missing:spectral_filter",), tile=True),
+    # the lamps' spectrum differs from the declared one (no hardware involved)
+    Case("lamp-shift-fitted", "lamp-shift", "a3", ("spd:D65",), False,
+         ("missing:lamp_spectrum_shift", "ambiguous:lamp_spectrum_shift"), tile=True),
     # two hidden effects
     Case("filter+interreflection-known", "filter-dip", "a3",
          ("effect:spectral_filter", "effect:interreflection"), True,
@@ -93,6 +96,9 @@ def _edit(text: str, remove: tuple[str, ...]) -> str:
             text = re.sub(rf"(?m)^{name}:\n(?:[ \t]+.*\n|#.*\n)*", "", text)
         elif kind == "lamp":
             text = re.sub(rf"(?m)^    {name}: .*\n", "", text)
+        elif kind == "spd":           # the lamps declared with a CIE illuminant's spectrum
+            text = re.sub(r"spd: \{type: inline.*?\]\}", f"spd: {{type: cie_illuminant, name: {name}}}",
+                          text, flags=re.S)
     # an effects: block left empty is removed
     return re.sub(r"(?m)^effects:\n(?![ \t])", "", text)
 

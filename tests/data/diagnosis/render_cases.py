@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("filter-dip",)
+SCENES = ("filter-dip", "lamp-shift")
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.002
