@@ -531,18 +531,22 @@ def _channel(item: str) -> str:
     return _channels(item)[0]
 
 
-def _channel_check(items: tuple[str, ...], gain: tuple[float, float]) -> str:
-    """Channel honesty: each explanation must gain more than :data:`SIGNIFICANT` χ² units on a
-    residual it can act on — the illuminance readings (spatial) or the white-tile spectrum's
-    shape (spectral) — so a geometry never wins on a purely spectral residual, nor a filter on
-    a purely spatial one."""
+def _channel_check(items: tuple[str, ...], gain: tuple[float, float], n_params: dict) -> str:
+    """Channel honesty: each explanation must gain on a residual it can act on — the illuminance
+    readings (spatial) or the white-tile spectrum's shape (spectral) — more than fitting its
+    ``k`` parameters to noise would: Δχ² > :data:`SIGNIFICANT` + k + 3·√(2k) (a fit of k free
+    parameters to pure noise lowers χ² by k ± √(2k)).  So a geometry never wins on a purely
+    spectral residual, nor a filter on a purely spatial one."""
     out = []
     names = {"spatial": "the illuminance readings", "spectral": "the white-tile spectrum's shape"}
     for it in items:
+        k = max(int(n_params.get(it, 1)), 1)
+        need = SIGNIFICANT + k + 3.0 * math.sqrt(2.0 * k)
         ch = _channels(it)
-        if not any(gain[0 if c == "spatial" else 1] > SIGNIFICANT for c in ch):
+        if not any(gain[0 if c == "spatial" else 1] > need for c in ch):
             out.append(f"{it} gains only " + " and ".join(
-                f"{gain[0 if c == 'spatial' else 1]:.1f} χ² on {names[c]}" for c in ch))
+                f"{gain[0 if c == 'spatial' else 1]:.1f} χ² on {names[c]}" for c in ch)
+                + f" (needs {need:.0f} with {k} parameter{'s' if k > 1 else ''})")
     return "; ".join(out)
 
 
@@ -601,12 +605,14 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     def refit(items: tuple[str, ...]) -> Suspect:
         cur_ir, new_eff, free = ir, effects, base_free
         post, hw = [], []
+        n_params: dict[str, int] = {}
         for it in items:
+            before = len(free)
             if it.startswith(HYPOTHESIS_PREFIX):
                 H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
                 hw.append(H)
                 if H.channel == "spectral":
-                    post.append(H)
+                    post.append((it, H))
                     continue
                 cur_ir, add_eff, add_free = H.augment(cur_ir, lighting, meas.known_output_groups)
                 new_eff = {**new_eff, **add_eff}
@@ -615,6 +621,7 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             else:
                 new_eff, free = candidate_config(cur_ir, lighting, new_eff, it, free,
                                                  meas.known_output_groups)
+            n_params[it] = len(free) - before
         if cur_ir is ir:
             m, c = meas, cache
         else:
@@ -643,11 +650,12 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
         if cur_ir is not ir:
             fit.ir = cur_ir          # the booth this explanation predicts with (plan)
         k = len(free)
-        for H in post:
+        for it, H in post:
             f2 = H.fit_on(prob, fit, known_all)
             if f2 is None:
                 return None
-            k += sum(1 for fp in f2.free if not fp.linear)
+            n_params[it] = sum(1 for fp in f2.free if not fp.linear)
+            k += n_params[it]
             fit = f2
         bic = fit.chi2 + k * logn
         eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
@@ -670,7 +678,7 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             shown = by_effect[eids[0]]
         parts = _chi2_parts(fit, noise)
         gain = (base_parts[0] - parts[0], base_parts[1] - parts[1])
-        why_not = _channel_check(items, gain)
+        why_not = _channel_check(items, gain, n_params)
         return Suspect(
             effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
             n_params=k - len(base_free), explains=consistent_with_noise(fit, **ctest),

@@ -342,15 +342,16 @@ class AperturePlateHypothesis(PlateHypothesis):
         return out
 
 
-def filter_basis(k: int = FILTER_BASIS) -> np.ndarray:
-    """Cubic B-spline basis (471, k) on the 1 nm grid, uniform knots over 380–780 nm and held
-    constant outside; the functions sum to 1 at every wavelength."""
+def filter_basis(k: int = FILTER_BASIS, lo_nm: float = 380.0, hi_nm: float = 780.0) -> np.ndarray:
+    """Cubic B-spline basis (471, k) on the 1 nm grid, uniform knots over ``lo_nm``–``hi_nm``
+    (the range the white tile was measured over) and held constant outside it; the functions
+    sum to 1 at every wavelength."""
     from scipy.interpolate import BSpline
 
     deg = 3
-    inner = np.linspace(380.0, 780.0, k - deg + 1)
+    inner = np.linspace(lo_nm, hi_nm, k - deg + 1)
     t = np.concatenate([[inner[0]] * deg, inner, [inner[-1]] * deg])
-    x = np.clip(_WL, 380.0, 780.0 - 1e-9)
+    x = np.clip(_WL, lo_nm, hi_nm - 1e-9)
     return BSpline.design_matrix(x, t, deg).toarray()
 
 
@@ -359,7 +360,11 @@ class _FilteredProblem(FitProblem):
 
     def __init__(self, base: FitProblem, fit: FitResult, known: bool):
         self._base = base
-        self._basis = filter_basis()
+        edges = base.ir.grid.edges_nm
+        used = np.nonzero(base.tile_mask)[0]
+        lo, hi = (float(edges[used[0]]), float(edges[used[-1] + 1])) if used.size else (380.0, 780.0)
+        self._range_nm = (max(lo, 380.0), min(hi, 780.0))
+        self._basis = filter_basis(FILTER_BASIS, *self._range_nm)
         self._held = None if known else int(np.argmin(np.abs(
             (self._basis * _WL[:, None]).sum(0) / self._basis.sum(0) - 555.0)))
         coeffs = [FreeParameter(f"hypothesis.smooth_filter.b{k}", FILTER_COEFF_BOUNDS, 0.0)
@@ -438,7 +443,8 @@ class SmoothFilterHypothesis(Hypothesis):
         C = res.correlation[np.ix_(idx, idx)] * np.outer(se, se) if se.size else np.zeros((0, 0))
         B = fp._basis if fp._held is None else np.delete(fp._basis, fp._held, axis=1)
         sig = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0, None)) if se.size else np.zeros_like(T)
-        res.hypothesis_data = {"transmittance_1nm": T, "log_sigma_1nm": sig, "known": known}
+        res.hypothesis_data = {"transmittance_1nm": T, "log_sigma_1nm": sig, "known": known,
+                               "range_nm": fp._range_nm}
         # the parameters held from the fit it was added to keep their values
         res.values = {**fit.values, **res.values}
         # the fitted filter as booth hardware: the booth of this explanation, for whoever
@@ -470,8 +476,9 @@ class SmoothFilterHypothesis(Hypothesis):
         wl = np.arange(380, 781, 10)
         t = np.interp(wl, _WL, T)
         s = np.interp(wl, _WL, T * sig)
+        lo, hi = h.get("range_nm", (380.0, 780.0))
         return (f"filters:   # hypothesis: {cls.summary}; transmittance fitted to the white-tile "
-                f"spectrum{note}\n"
+                f"spectrum{note}; measured {lo:.0f}–{hi:.0f} nm, held constant outside\n"
                 f"  {FITTED_FILTER_ID}:\n"
                 "    transmittance: {type: inline, wavelengths_nm: [" + ", ".join(str(int(w)) for w in wl) +
                 "],\n                    values: [" + ", ".join(f"{v:.3f}" for v in np.clip(t, 0, 1)) + "]}\n"

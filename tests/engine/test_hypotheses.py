@@ -87,3 +87,34 @@ def test_plate_hypothesis_yaml_validates_and_compiles_to_the_fitted_hardware(H, 
         # the lamps' footprint (600 + 2·13 by 240 + 2·13) plus 20 mm each side, scaled
         assert plate.opening_mm == pytest.approx((666 * 0.9, 306 * 1.3))
         assert len(out.occluders) == 5      # plate + four black cavity sides
+
+
+def test_an_undeclared_diffusing_plate_is_among_the_explanations(tmp_path):
+    """Truth: the 45 % walls scene with a Lambertian-scattering plate (flat transmittance 0.85,
+    diffuse fraction 0.6) that the user's booth does not declare.  Mitsuba has no such plate, so
+    the truth is the brute-force Monte Carlo reference engine (its own sampling and transport).
+    With the output known, the A3 grid sees a level drop several shapes explain: the verdict
+    must list the plate, and never a filter (a level is not a spectrum)."""
+    from lbscene.engine.compare import run_compare
+    from lbscene.engine.forward_synthetic import synthesize
+
+    src = DATA / "validation" / "walls-45"
+    full, user = tmp_path / "full", tmp_path / "user"
+    for d in (full, user):
+        d.mkdir()
+        shutil.copy(src / "booth.yaml", d / "booth.yaml")
+    t = (full / "booth.yaml").read_text().replace("lighting:", (
+        "diffuser:\n  z_mm: 570\n  size_mm: [880, 580]\n  transmittance: {type: constant, value: 0.85}\n"
+        "  scattering: {type: lambertian, diffuse_fraction: 0.6}\nlighting:"), 1)
+    (full / "booth.yaml").write_text(t.replace("effects:\n", "effects:\n  diffuser: {}\n"))
+    m = synthesize(full, tmp_path / "m", lighting="L", truth_effects={"interreflection": {}, "diffuser": {}},
+                   noise_percent=1.0, known_output_groups=["tube_front", "tube_rear"])
+    y = m.read_text()
+    m.write_text(re.sub(r"booth: .*", "booth: ../user", y))
+    res = run_compare(m)
+    v = res.verdict
+    named = v.effects if v.kind == "missing" else tuple(v.tied)
+    assert v.kind in ("missing", "ambiguous") and "diffuser" in named, str(v)
+    assert "spectral_filter" not in named
+    plate = next(s for s in res.diagnosis.suspects if "hypothesis:diffuser_plate" in s.items)
+    assert plate.explains and "diffuser:" in plate.hardware["diffuser_plate"]
