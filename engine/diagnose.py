@@ -501,14 +501,17 @@ def _trend(meas, fit: FitResult) -> list[str]:
 
 
 def _chi2_parts(fit: FitResult, noise: NoiseModel) -> tuple[float, float]:
-    """χ² of the illuminance readings, and of the white-tile spectrum's *shape* (its relative
-    residual less its mean: a level is what geometry changes too), in noise units."""
+    """χ² in noise units split by what can explain it: *levels* — the illuminance readings and the
+    white-tile spectrum's mean (light that geometry or a meter moves) — and the white-tile
+    spectrum's *shape* (its relative residual less its mean: only spectra change it)."""
     r = fit.residual_percent / noise.percent if fit.lux_pred is not None else np.zeros(0)
     sp = fit.spectral_residual_percent
     sp = np.zeros(0) if sp is None else sp[np.isfinite(sp)] / noise.spectral_percent
+    level = float(r @ r)
     if sp.size:
+        level += sp.size * float(sp.mean()) ** 2
         sp = sp - sp.mean()
-    return float(r @ r), float(sp @ sp)
+    return level, float(sp @ sp)
 
 
 def _channels(item: str) -> tuple[str, ...]:
@@ -532,13 +535,14 @@ def _channel(item: str) -> str:
 
 
 def _channel_check(items: tuple[str, ...], gain: tuple[float, float], n_params: dict) -> str:
-    """Channel honesty: each explanation must gain on a residual it can act on — the illuminance
-    readings (spatial) or the white-tile spectrum's shape (spectral) — more than fitting its
+    """Channel honesty: each explanation must gain on a residual it can act on — the readings'
+    levels (spatial: illuminance and the tile's mean) or the white-tile spectrum's shape
+    (spectral) — more than fitting its
     ``k`` parameters to noise would: Δχ² > :data:`SIGNIFICANT` + k + 3·√(2k) (a fit of k free
     parameters to pure noise lowers χ² by k ± √(2k)).  So a geometry never wins on a purely
     spectral residual, nor a filter on a purely spatial one."""
     out = []
-    names = {"spatial": "the illuminance readings", "spectral": "the white-tile spectrum's shape"}
+    names = {"spatial": "the readings' levels", "spectral": "the white-tile spectrum's shape"}
     for it in items:
         k = max(int(n_params.get(it, 1)), 1)
         need = SIGNIFICANT + k + 3.0 * math.sqrt(2.0 * k)
