@@ -83,8 +83,11 @@ GATHER_FINE = 12
 NEAR_SUB = 3
 #: box patches are split while their diagonal exceeds this times their distance to a lit lamp …
 REFINE_RATIO = 1.5
-#: relative step to which fitted aperture openings are rounded for the light reaching the patches
-OPENING_STEP = 0.02
+#: relative step to which the fitted numbers that shape lamp light are rounded for the light
+#: reaching the patches (RadiosityTransport._transport_model)
+TRANSPORT_PARAM_STEP = 0.02
+#: ... and the absolute step near zero
+TRANSPORT_PARAM_FLOOR = 1e-3
 #: … down to this size (mm)
 REFINE_MIN_MM = 15.0
 #: segments sampled between two patches whose mutual view a body (lamp, occluder) may cross
@@ -162,6 +165,23 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
     Pall = np.concatenate(done_p)
     return Patches(Pall, np.concatenate(done_n), quad_areas(Pall), np.concatenate(done_m),
                    np.concatenate(done_s))
+
+
+def _round_number(v: float) -> float:
+    """``v`` on a grid of relative steps :data:`TRANSPORT_PARAM_STEP` (absolute steps of
+    :data:`TRANSPORT_PARAM_FLOOR` near 0)."""
+    if abs(v) < TRANSPORT_PARAM_FLOOR / TRANSPORT_PARAM_STEP:
+        return round(v / TRANSPORT_PARAM_FLOOR) * TRANSPORT_PARAM_FLOOR
+    step = math.log1p(TRANSPORT_PARAM_STEP)
+    return math.copysign(math.exp(round(math.log(abs(v)) / step) * step), v)
+
+
+def _rounded(params, declared=None) -> dict:
+    """Effect parameters (or a lamp override) with every float that differs from the declared
+    one rounded (see _round_number)."""
+    declared = dict(declared or {})
+    return {k: (_round_number(v) if isinstance(v, float) and v != declared.get(k) else v)
+            for k, v in dict(params or {}).items()}
 
 
 def _changes_lamp_light(effect_id: str) -> bool:
@@ -388,27 +408,31 @@ class RadiosityTransport:
         return terms, E0
 
     def _transport_model(self):
-        """The model whose lamp light lights the patches: this one, except that fitted aperture
-        openings are rounded to :data:`OPENING_STEP` (relative).  Light reaching the walls
-        changes smoothly with an opening, so a fit that moves it re-evaluates the occlusion of
-        the patches only when it moves by a step, not at every evaluation; the readings' direct
-        light always sees the exact opening."""
+        """The model whose lamp light lights the patches: this one with every fitted number that
+        shapes lamp light (effect parameters, lamp σ overrides) rounded to
+        :data:`TRANSPORT_PARAM_STEP` (relative; steps of :data:`TRANSPORT_PARAM_FLOOR` below it).
+
+        Light reaching the walls changes smoothly with those numbers and reaches a reading only
+        after a bounce, so a fit re-evaluates it when a parameter moves by a step, not at every
+        evaluation (a 2 % change of a beam's σ or an opening changes the inter-reflected light
+        by a fraction of a percent of itself); the readings' direct light always sees the exact
+        parameters."""
         m = self.model
-        ap = m.effects.get("aperture_occlusion")
-        if not ap:
+        # numbers as the booth declares them stay exact: only what a fit moves is rounded
+        eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if _changes_lamp_light(eid) else p)
+               for eid, p in m.effects.items()}
+        lo = {lid: _rounded(o) for lid, o in m.ctx.lamp_overrides.items()}
+        if eff == m.effects and lo == m.ctx.lamp_overrides:
             return m
-        step = math.log1p(OPENING_STEP)
-        q = dict(ap)
-        for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
-            v = float(ap.get(k, 1.0) or 1.0)
-            q[k] = float(math.exp(round(math.log(v) / step) * step))
-        if all(q[k] == float(ap.get(k, 1.0) or 1.0) for k in ("opening_scale", "opening_scale_u",
-                                                               "opening_scale_v")):
-            return m
+        from pydantic import ValidationError
+
         from .forward import ForwardModel
 
-        return ForwardModel(m.ir, m.lighting, effects={**m.effects, "aperture_occlusion": q},
-                            lamp_overrides=m.ctx.lamp_overrides, options=m.options, cache=m.ctx.cache)
+        try:
+            return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=m.options,
+                                cache=m.ctx.cache)
+        except ValidationError:         # rounded past a parameter's bound: exact, then
+            return m
 
     def _F_past_bodies(self, F: np.ndarray) -> np.ndarray:
         """``F`` times the fraction of each pair's mutual view that no body crosses.
