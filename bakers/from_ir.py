@@ -325,12 +325,10 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     # ---- lamps
     emitters = []
     for lamp, level in ir.lamps_on(lighting):
-        spec = np.asarray(lamp.peak_intensity_1nm, float) * float(level)
-        filt = _effect(effects, "spectral_filter")
-        if filt is not None and (filt.get("lamps") is None or lamp.id in filt["lamps"]):
-            fid = filt.get("filter") or lamp.filter
-            if fid and fid in ir.filters:
-                spec = spec * ir.filters[fid].transmittance.array_1nm
+        # shifted and filtered as the forward model's emitters are (one definition)
+        from lbscene.engine.effects.catalog import lamp_spectrum_1nm
+
+        spec = lamp_spectrum_1nm(ir, lamp, effects) * float(level)
         pts, s, spacing = _lamp_points(lamp)
         w = np.ones(len(pts))
         tef = _effect(effects, "tube_end_falloff", lamp.id)

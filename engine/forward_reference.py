@@ -270,7 +270,6 @@ class ReferenceEngine:
         out = []
         ap = self.fx.get("angular_profile")
         rf = self.fx.get("reflector")
-        sf = self.fx.get("spectral_filter")
         for lamp_id in self.ir.lighting[self.lighting].lamps:
             lamp = self.ir.lamp(lamp_id)
             level = float(self.ir.lighting[self.lighting].dimming.get(lamp_id, 1.0))
@@ -284,16 +283,10 @@ class ReferenceEngine:
                     prof = _profile(lamp.profile)
                 elif ap.sigma_deg is not None:
                     prof = _profile({"type": "gaussian", "sigma_deg": ap.sigma_deg})
-            spec = lamp.intensity_scale_W_sr_nm * lamp.spd.array_1nm * level
-            sh = self.fx.get("lamp_spectrum_shift")
-            if sh is not None and (sh.lamps is None or lamp.id in sh.lamps):
-                from .effects.catalog import shifted_spectrum_1nm
+            # shifted and filtered as the forward model's emitters are (one definition)
+            from .effects.catalog import lamp_spectrum_1nm
 
-                spec = shifted_spectrum_1nm(spec, sh.shift_nm, sh.tilt)
-            if sf is not None and (sf.lamps is None or lamp.id in sf.lamps):
-                fid = sf.filter or lamp.filter
-                if fid:
-                    spec = spec * self.ir.filters[fid].transmittance.array_1nm
+            spec = lamp_spectrum_1nm(self.ir, lamp, {k: v.model_dump() for k, v in self.fx.items()}) * level
             blockers = self._occluders(lamp.id)
             mirror = None
             if rf is not None and lamp.reflector and (rf.lamps is None or lamp.id in rf.lamps):

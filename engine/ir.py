@@ -300,17 +300,21 @@ class SceneIR(_IR):
         return [(self.lamp(i), float(cfg.dimming.get(i, 1.0))) for i in cfg.lamps]
 
     def lamp_emission_1nm(self, lamp: IRLamp, *, with_filter: bool | None = None) -> np.ndarray:
-        """Peak spectral intensity of a lamp, W·sr⁻¹·nm⁻¹, through its filter when modelled.
+        """Peak spectral intensity of a lamp, W·sr⁻¹·nm⁻¹, after the booth's lamp-spectrum
+        effects (:func:`lbscene.engine.effects.catalog.lamp_spectrum_1nm`: a spectrum shift, its
+        filter when modelled).
 
         ``with_filter=None`` follows the model: the filter applies when the
-        ``spectral_filter`` effect is enabled.
+        ``spectral_filter`` effect is enabled; True/False force it on/off.
         """
-        e = lamp.peak_intensity_1nm
-        if with_filter is None:
-            with_filter = "spectral_filter" in self.effects
-        if with_filter and lamp.filter:
-            e = e * self.filters[lamp.filter].transmittance.array_1nm
-        return e
+        from .effects.catalog import lamp_spectrum_1nm
+
+        eff = dict(self.effects)
+        if with_filter is False:
+            eff.pop("spectral_filter", None)
+        elif with_filter and "spectral_filter" not in eff:
+            eff["spectral_filter"] = {}
+        return lamp_spectrum_1nm(self, lamp, eff)
 
     def lighting_spd_1nm(self, lighting: str, point_mm: Vec3 | None = None) -> np.ndarray:
         """Spectral irradiance (W·m⁻²·nm⁻¹) on an upward surface at ``point_mm``

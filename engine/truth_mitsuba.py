@@ -93,6 +93,7 @@ VARIANT = "scalar_spectral"
 
 #: effects the provider represents (with the restrictions checked in ``_refusals``)
 SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
+                               "lamp_spectrum_shift",
                                "angular_profile", "detector_cosine_error"})
 
 
@@ -281,7 +282,9 @@ class MitsubaTruth:
                 shape.pop("emitter")
                 out[f"body_{lamp.id}"] = dict(shape, bsdf=black)
                 continue
-            I = level * ir.lamp_emission_1nm(lamp, with_filter="spectral_filter" in fx)  # W/sr/nm
+            from .effects.catalog import lamp_spectrum_1nm
+
+            I = level * lamp_spectrum_1nm(ir, lamp, fx)  # W/sr/nm, shifted and filtered as declared
             shape = self._lamp_shape(lamp, I)
             if lamp.kind != "point":
                 shape["bsdf"] = black

@@ -42,6 +42,7 @@ __all__ = [
     "SpectralFilterEffect",
     "LampSpectrumShiftEffect",
     "shifted_spectrum_1nm",
+    "lamp_spectrum_1nm",
     "DetectorCosineErrorEffect",
     "ReflectorEffect",
     "f2_linear_coefficient",
@@ -418,13 +419,21 @@ class SpectralFilterEffect(PhysicalEffect):
             return "no lamp that is on names a filter (give `filter:` and `lamps:` to the effect)"
         return None
 
+    helpers = ("filter_for",)
+
     @staticmethod
-    def modify_emitters(ctx, p, lamp, es: EmitterSet) -> EmitterSet:
-        if p.filter is not None:
-            fid = p.filter if (p.lamps is None or lamp.id in p.lamps) else None
-        else:
-            fid = lamp.filter if (p.lamps is None or lamp.id in p.lamps) else None
-        if not fid or fid not in ctx.ir.filters:
+    def filter_for(ir, p, lamp) -> str | None:
+        """The filter in front of ``lamp``: the effect's ``filter`` (or the lamp's own) when the
+        effect selects the lamp, and the booth defines it; else None."""
+        if p.lamps is not None and lamp.id not in p.lamps:
+            return None
+        fid = p.filter if p.filter is not None else lamp.filter
+        return fid if fid and fid in ir.filters else None
+
+    @classmethod
+    def modify_emitters(cls, ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        fid = cls.filter_for(ctx.ir, p, lamp)
+        if fid is None:
             return es
         t = ctx.ir.filters[fid].transmittance.array_1nm
         return es.with_(spectrum_1nm=es.spectrum_1nm * t, spectral_key=es.spectral_key + (f"filter:{fid}",))
@@ -464,7 +473,6 @@ class LampSpectrumShiftEffect(PhysicalEffect):
     order = 29
     fit_parameters = {"shift_nm": (-15.0, 15.0), "tilt": (-0.5, 0.5)}
     fit_initial = {"shift_nm": 0.0, "tilt": 0.0}
-    backends = frozenset({"forward", "reference"})
 
     class Params(_LampSelection):
         shift_nm: float = Field(0.0, ge=-50, le=50, description="Wavelength shift of the whole spectrum "
@@ -478,6 +486,27 @@ class LampSpectrumShiftEffect(PhysicalEffect):
             return es
         return es.with_(spectrum_1nm=shifted_spectrum_1nm(es.spectrum_1nm, p.shift_nm, p.tilt),
                         spectral_key=es.spectral_key + (f"shift:{p.shift_nm:.6g}:{p.tilt:.6g}",))
+
+
+def lamp_spectrum_1nm(ir, lamp, effects: dict) -> np.ndarray:
+    """Peak spectral intensity of ``lamp`` (W·sr⁻¹·nm⁻¹) after the lamp-spectrum effects enabled
+    in ``effects`` — ``lamp_spectrum_shift``, then ``spectral_filter`` — exactly as the forward
+    model's emitters carry it.  The backends that take a lamp's spectrum as a whole (reference
+    engine, Cycles bake, realtime graph, USD stage, Mitsuba truth) read it here, so each effect
+    means one thing everywhere."""
+    from .physics import effect_params
+
+    e = np.asarray(lamp.peak_intensity_1nm, float)
+    if "lamp_spectrum_shift" in effects:
+        p = effect_params(LampSpectrumShiftEffect, effects["lamp_spectrum_shift"])
+        if _selected(p, lamp.id):
+            e = shifted_spectrum_1nm(e, p.shift_nm, p.tilt)
+    if "spectral_filter" in effects:
+        p = effect_params(SpectralFilterEffect, effects["spectral_filter"])
+        fid = SpectralFilterEffect.filter_for(ir, p, lamp)
+        if fid is not None:
+            e = e * ir.filters[fid].transmittance.array_1nm
+    return e
 
 
 # --------------------------------------------------------------------------- meter cosine error
