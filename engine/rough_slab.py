@@ -30,12 +30,13 @@ transmittance :math:`f_T(ω_i, ω_o)` (light entering the top, leaving the botto
 reflectance are integrals over every number of internal bounces, which this module computes
 by Monte Carlo: photons enter with direction :math:`ω_i`, each interface samples a microfacet
 normal from the distribution of visible normals :math:`D_v(m) = G_1(v) \\max(0, v·m) D(m)/(v·n)`
-(Heitz 2018, "Sampling the GGX distribution of visible normals"), reflects with probability
-:math:`F` and refracts otherwise, and the photon's weight is multiplied by :math:`G_1(o)`;
-that is the unbiased estimator of Walter's BSDF and the sampling of Mitsuba 3's
-``roughdielectric``.  The weight a photon loses to :math:`G_1` (light the single-scattering
-microfacet model does not return) is tallied as :math:`A_\\text{mf}`, so that for a
-non-absorbing slab
+(Heitz 2018, "Sampling the GGX distribution of visible normals"); the reflected part carries
+the weight :math:`F\\,G_1(o_r)` and the refracted part :math:`(1-F)\\,G_1(o_t)`
+(:func:`interface_split`).  That is the expected value of the estimator of Mitsuba 3's
+``roughdielectric`` (which picks one of the two with probability :math:`F`), an unbiased
+estimator of Walter's BSDF.  The weight lost to :math:`G_1` and to directions on the wrong
+side of a face (light the single-scattering microfacet model does not return) is tallied as
+:math:`A_\\text{mf}`, so that for a non-absorbing slab
 
 .. math:: T(μ_i) + R(μ_i) + A_\\text{mf}(μ_i) = 1
 
@@ -88,7 +89,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
-           "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS"]
+           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS"]
 
 #: incidence angles of the table (degrees); 90° is the limit T = 0
 THETA_I_DEG = np.r_[np.arange(0.0, 88.0, 2.0), 88.0, 89.0, 89.75]
@@ -96,13 +97,16 @@ THETA_I_DEG = np.r_[np.arange(0.0, 88.0, 2.0), 88.0, 89.0, 89.75]
 BIN_THETA_DEG = 2.0
 #: width of the azimuth bins of the tabulated BTDF (degrees, over 0..180)
 BIN_PHI_DEG = 10.0
-#: photons per incidence node (standard error of T about 0.3/√PHOTONS)
-PHOTONS = 200_000
-#: interface events a photon may have before it is counted as lost (trapped light; the tally
-#: records how much)
-MAX_EVENTS = 200
+#: photons per incidence node (the expected-value estimator leaves only the microfacet sampling's
+#: variance: T's standard error is below 0.05 % for roughness ≤ 0.3)
+PHOTONS = 16_000
+#: interface events a photon may have inside the slab before what it carries is counted as lost
+#: (trapped light; the tally records how much)
+MAX_EVENTS = 400
+#: a photon whose weight falls below this stops (its weight is counted as lost)
+MIN_WEIGHT = 1e-3
 #: version of the computation (part of the cache key)
-_FORMAT = "rough-slab-1"
+_FORMAT = "rough-slab-2"
 
 
 def clear_slab_normal_transmittance(ior: float) -> float:
@@ -161,88 +165,113 @@ def _fresnel(cos_i: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray]:
     return np.where(tir, 1.0, 0.5 * (rs + rp)), ct
 
 
-def interface_event(v: np.ndarray, alpha: float, eta: float, rng: np.random.Generator):
+def interface_split(v: np.ndarray, alpha: float, eta: float, rng: np.random.Generator):
     """One scattering by a rough interface, in the frame whose +z is the face's normal on the
-    side of ``v`` (the unit direction toward where the light came from, v_z > 0).
+    side of ``v`` (the unit direction toward where the light came from, v_z > 0; ``eta`` =
+    n beyond the face / n on the side of ``v``).
 
-    Returns ``(o, reflected, weight)``: the new propagation direction ``o`` (N, 3), whether it
-    was reflected (o_z > 0) or refracted (o_z < 0), and the factor :math:`G_1(o)` (0 where the
-    sampled direction lies on the wrong side of the macro-surface: light the model loses).
+    A microfacet normal :math:`m` is sampled from :math:`D_v(m)` and *both* outcomes are kept
+    with their expected weights (no random choice between them):
+
+    .. math::
+
+        o_r = 2 (v·m) m - v,\\quad w_r = F(v·m)\\,G_1(o_r); \\qquad
+        o_t = \\text{refract}(v, m),\\quad w_t = (1 - F(v·m))\\,G_1(o_t),
+
+    each 0 where its direction lies on the wrong side of the macro-surface (light the
+    single-scattering model loses).  :math:`E[w_r]` and :math:`E[w_t]` are the interface's
+    directional reflectance and transmittance.
+
+    Returns ``(o_r, w_r, o_t, w_t)``.
     """
     n = len(v)
     m = _sample_visible_normal(v, alpha, rng.random(n), rng.random(n))
-    c = np.einsum("ij,ij->i", v, m)
-    c = np.clip(c, 0.0, 1.0)
+    c = np.clip(np.einsum("ij,ij->i", v, m), 0.0, 1.0)
     F, ct = _fresnel(c, eta)
-    refl = rng.random(n) < F
     o_r = 2.0 * c[:, None] * m - v
+    o_r /= np.linalg.norm(o_r, axis=1, keepdims=True)
+    w_r = np.where(o_r[:, 2] > 0, F * _g1(o_r[:, 2], alpha), 0.0)
     o_t = -v / eta + (c / eta - ct)[:, None] * m
-    o = np.where(refl[:, None], o_r, o_t)
-    o /= np.linalg.norm(o, axis=1, keepdims=True)
-    ok = np.where(refl, o[:, 2] > 0, o[:, 2] < 0)
-    w = np.where(ok, _g1(o[:, 2], alpha), 0.0)
-    return o, refl, w
+    o_t /= np.maximum(np.linalg.norm(o_t, axis=1, keepdims=True), 1e-300)
+    w_t = np.where((o_t[:, 2] < 0) & (F < 1.0), (1.0 - F) * _g1(o_t[:, 2], alpha), 0.0)
+    return o_r, w_r, o_t, w_t
 
 
 # --------------------------------------------------------------------------- the slab
 
 def _simulate(alpha: float, ior: float, photons: int, seed: int, theta_deg=THETA_I_DEG) -> np.ndarray:
     """Monte Carlo of the slab for every incidence angle of ``theta_deg``; one flat float array:
-    per angle ``[T, R_top, R_int, A_mf, lobe_50_deg, lobe_90_deg, btdf (n_θ × n_φ)]``."""
+    per angle ``[T, R_top, R_int, A_mf, lobe_50_deg, lobe_90_deg, btdf (n_θ × n_φ)]``.
+
+    Each photon follows the refracted branch through the top face and then, inside, the
+    reflected branch at every face, the light leaving the slab at each event being tallied
+    with its expected weight (:func:`interface_split`): the Fresnel choice adds no variance,
+    and a smooth slab's tallies are exact.  A photon stops when its weight falls below
+    :data:`MIN_WEIGHT` or after :data:`MAX_EVENTS` events, and all stop when they carry less
+    than :data:`MIN_WEIGHT` / 100 of the light that entered; what they still carry is counted in
+    :math:`A_\\text{mf}` (trapped light)."""
     rng = np.random.default_rng(seed)
     edges_t = np.deg2rad(np.arange(0.0, 90.0 + 1e-9, BIN_THETA_DEG))
     edges_p = np.deg2rad(np.arange(0.0, 180.0 + 1e-9, BIN_PHI_DEG))
     # ∫_bin cos θ dω over both signs of Δφ
     proj = 0.5 * np.diff(np.sin(edges_t) ** 2)[:, None] * (2.0 * np.diff(edges_p))[None, :]
+    th = np.deg2rad(np.asarray(theta_deg, float))
+    K = len(th)
+    D0 = np.stack([np.sin(th), np.zeros(K), -np.cos(th)], axis=1)      # propagation, downward
+    # every incidence angle in one batch: photon j belongs to angle node[j]
+    node = np.repeat(np.arange(K), photons)
+    # top face from outside: frame +z up, v = -d
+    o_r, w_r, o_t, w_t = interface_split(-D0[node], alpha, ior, rng)
+    R_top = np.bincount(node, w_r, K)
+    A = photons - R_top - np.bincount(node, w_t, K)
+    live = w_t > 0
+    d, wt, nd = o_t[live], w_t[live], node[live]
+    R_int = np.zeros(K)
+    T_dirs, T_w, T_n = [], [], []
+    for _ in range(MAX_EVENTS):
+        if wt.sum() < MIN_WEIGHT * 1e-2 * photons:
+            break                                               # the rest is counted as lost
+        down = d[:, 2] < 0
+        # the face the photon reaches, in the frame whose +z faces the photon (inside: +z toward
+        # the glass); moving up flips z
+        vv = -d
+        vv[~down, 2] *= -1.0
+        o_r, w_r, o_t, w_t = interface_split(vv, alpha, 1.0 / ior, rng)
+        o_r[~down, 2] *= -1.0                                   # back to the world frame
+        out_w = wt * w_t
+        A += np.bincount(nd, wt * (1.0 - w_r - w_t), K)
+        R_int += np.bincount(nd[~down], out_w[~down], K)
+        esc = down & (out_w > 0)
+        T_dirs.append(o_t[esc])
+        T_w.append(out_w[esc])
+        T_n.append(nd[esc])
+        wt = wt * w_r
+        keep = wt > MIN_WEIGHT
+        A += np.bincount(nd[~keep], wt[~keep], K)
+        d, wt, nd = o_r[keep], wt[keep], nd[keep]
+    A += np.bincount(nd, wt, K)                                 # trapped beyond MAX_EVENTS
+    od = np.concatenate(T_dirs)
+    ow = np.concatenate(T_w)
+    on = np.concatenate(T_n)
     rows = []
-    for th in np.deg2rad(np.asarray(theta_deg, float)):
-        d0 = np.array([np.sin(th), 0.0, -np.cos(th)])          # propagation, downward
-        # top face from outside: frame +z up, v = -d
-        v = np.tile(-d0, (photons, 1))
-        o, refl, w = interface_event(v, alpha, ior, rng)
-        A = np.sum(1.0 - w)
-        R_top = np.sum(w[refl])
-        live = ~refl & (w > 0)
-        d, wt = o[live], w[live]
-        R_int = 0.0
-        T_dirs, T_w = [], []
-        for _ in range(MAX_EVENTS):
-            if not len(d):
-                break
-            down = d[:, 2] < 0
-            # the face the photon reaches, in the frame whose +z faces the photon (inside: +z
-            # toward the glass); moving up flips z
-            vv = -d.copy()
-            vv[~down, 2] *= -1.0
-            o, refl, w = interface_event(vv, alpha, 1.0 / ior, rng)
-            o[~down, 2] *= -1.0                                 # back to the world frame
-            A += np.sum(wt * (1.0 - w))
-            wt = wt * w
-            out = ~refl & (w > 0)
-            esc_down = out & down
-            R_int += np.sum(wt[out & ~down])
-            T_dirs.append(o[esc_down])
-            T_w.append(wt[esc_down])
-            keep = refl & (w > 0)
-            d, wt = o[keep], wt[keep]
-        A += np.sum(wt)                                         # trapped beyond MAX_EVENTS
-        od = np.concatenate(T_dirs) if T_dirs else np.zeros((0, 3))
-        ow = np.concatenate(T_w) if T_w else np.zeros(0)
-        T = ow.sum()
+    for k in range(K):
+        sel = on == k
+        odk, owk = od[sel], ow[sel]
+        T = owk.sum()
         # lobe widths around the straight-through direction
-        ang = np.rad2deg(np.arccos(np.clip(od @ d0, -1.0, 1.0)))
+        ang = np.rad2deg(np.arccos(np.clip(odk @ D0[k], -1.0, 1.0)))
         if T > 0:
             order = np.argsort(ang)
-            cw = np.cumsum(ow[order]) / T
-            l50 = float(ang[order][np.searchsorted(cw, 0.5)])
+            cw = np.cumsum(owk[order]) / T
+            l50 = float(ang[order][min(np.searchsorted(cw, 0.5), len(cw) - 1)])
             l90 = float(ang[order][min(np.searchsorted(cw, 0.9), len(cw) - 1)])
         else:
             l50 = l90 = 0.0
-        th_o = np.arccos(np.clip(-od[:, 2], 0.0, 1.0))
-        ph_o = np.abs(np.arctan2(od[:, 1], od[:, 0]))          # Δφ from the plane of incidence
-        H, _, _ = np.histogram2d(th_o, ph_o, bins=(edges_t, edges_p), weights=ow)
+        th_o = np.arccos(np.clip(-odk[:, 2], 0.0, 1.0))
+        ph_o = np.abs(np.arctan2(odk[:, 1], odk[:, 0]))        # Δφ from the plane of incidence
+        H, _, _ = np.histogram2d(th_o, ph_o, bins=(edges_t, edges_p), weights=owk)
         btdf = H / photons / proj
-        rows.append(np.r_[T / photons, R_top / photons, R_int / photons, A / photons, l50, l90,
+        rows.append(np.r_[T / photons, R_top[k] / photons, R_int[k] / photons, A[k] / photons, l50, l90,
                           btdf.ravel()])
     return np.concatenate(rows)
 

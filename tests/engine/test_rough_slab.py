@@ -49,7 +49,8 @@ def test_smooth_limit_is_the_clear_slab():
 
 @pytest.mark.parametrize("alpha", [0.01, 0.09, 0.36])
 def test_energy_is_conserved(alpha):
-    # every photon ends transmitted, reflected or lost to the microfacet model's G₁ < 1
+    # every photon's weight ends transmitted, reflected or lost (the microfacet model's G₁ < 1,
+    # directions below a face, trapped light)
     tab = _table(alpha, np.array([0.0, 30.0, 60.0, 85.0]), 20_000)
     np.testing.assert_allclose(tab[:, 0] + tab[:, 1] + tab[:, 2] + tab[:, 3], 1.0, atol=1e-9)
     assert np.all(tab[:, :4] >= 0)
@@ -125,10 +126,11 @@ def test_one_interface_matches_walters_bsdf(alpha, theta, eta_i, eta_o):
     rng = np.random.default_rng(11)
     t = np.deg2rad(theta)
     v = np.tile([-np.sin(t), 0.0, np.cos(t)], (n, 1))
-    o, refl, w = rs.interface_event(v, alpha, eta_o / eta_i, rng)
-    R_mc, T_mc = np.mean(w * refl), np.mean(w * ~refl)
-    assert R_mc == pytest.approx(R_q, abs=4 * np.sqrt(R_q / n) + 2e-3)
-    assert T_mc == pytest.approx(T_q, abs=4 * np.sqrt(T_q * (1 - T_q) / n) + 2e-3)
+    o_r, w_r, o_t, w_t = rs.interface_split(v, alpha, eta_o / eta_i, rng)
+    assert np.all(o_r[w_r > 0, 2] > 0) and np.all(o_t[w_t > 0, 2] < 0)
+    R_mc, T_mc = np.mean(w_r), np.mean(w_t)
+    assert R_mc == pytest.approx(R_q, abs=4 * np.std(w_r) / np.sqrt(n) + 2e-3)
+    assert T_mc == pytest.approx(T_q, abs=4 * np.std(w_t) / np.sqrt(n) + 2e-3)
 
 
 def test_btdf_is_reciprocal():
@@ -136,16 +138,15 @@ def test_btdf_is_reciprocal():
     # so this is a property of the transport, not of the code's layout
     alpha = 0.36
     th = np.array([20.0, 21.0, 40.0, 41.0])
-    tab = _table(alpha, th, 200_000)
+    tab = _table(alpha, th, 400_000)
     nt, npf = rs._shape()
     f = tab[:, 6:].reshape(len(th), nt, npf)
     # bins of 2°: [20, 22) holds 21°, [40, 42) holds 41°: f(20°→41°) vs f(41°→20°…22°) is not
-    # symmetric, f(21°→41°) against f(41°→21°) is (both bin centres); Δφ bins of 10° up to 30°
-    # (beyond, too few photons reach these bins for a tight comparison)
-    for jp in (0, 1, 2):
-        a = f[1, 20, jp]           # θ_i = 21°, θ_o in [40, 42)
-        b = f[3, 10, jp]           # θ_i = 41°, θ_o in [20, 22)
-        assert a == pytest.approx(b, rel=0.08), (jp, a, b)
+    # symmetric, f(21°→41°) against f(41°→21°) is (both bin centres); summed over the Δφ bins
+    # up to 40° (a few thousand photons each: 2 % noise)
+    a = f[1, 20, :4].sum()         # θ_i = 21°, θ_o in [40, 42)
+    b = f[3, 10, :4].sum()         # θ_i = 41°, θ_o in [20, 22)
+    assert a == pytest.approx(b, rel=0.08), (a, b)
 
 
 def test_absorption_scales_transmitted_light_by_a_squared():
