@@ -653,7 +653,7 @@ _GAUSS_ARC = np.polynomial.legendre.leggauss(12)
 #: points around a tube's circumference in :meth:`ForwardModel.direct_per_point`: light that a
 #: surface near a tube receives comes from the tube's visible surface, a spread of directions
 #: (±asin(r/d)) a direction-dependent receiver (a rough plate's BTDF) must see
-PER_POINT_AROUND = 8
+PER_POINT_AROUND = 16
 
 
 def _cylinder_slices(d, N, axis, radius_mm):
