@@ -11,7 +11,10 @@ id                     kind        physics
 angular_profile        geometric   lamps emit I0·f(θ) (declared profile, or Gaussian σ)
 interreflection        global      radiosity between floor, walls, ceiling, meshes (spectral ρ)
 diffuser               geometric   plate: spectral transmittance, Fresnel angular loss,
-                                   Lambertian re-emission of a diffuse fraction
+                                   Lambertian re-emission of a diffuse fraction; a
+                                   ``roughness`` plate: the rough GGX slab's T(θ) on
+                                   straight paths, or its BTDF on re-emitting cells when
+                                   the lobe is wide (:mod:`lbscene.engine.rough_slab`)
 aperture_occlusion     geometric   occluders (aperture plates, panels) block lamp→point paths
 tube_end_falloff       geometric   tube emission falls linearly toward the ends
 spectral_filter        spectral    a filter's transmittance multiplies a lamp's spectrum
