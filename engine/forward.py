@@ -48,7 +48,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from .effects.physics import EmitterSet, ForwardContext, LambertianSource, effect_params
+from .effects.physics import (DirectionalSource, EmitterSet, ForwardContext, LambertianSource, PointLight,
+                              effect_params)
 
 __all__ = [
     "ForwardOptions",
@@ -404,7 +405,8 @@ class ForwardModel:
         store[key] = out
         return out
 
-    def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight, pair_factor=None):
+    def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight, pair_factor=None,
+                   per_point: bool = False):
         g0, cos_rx, theta = self._pair_geometry(es, P, N)
         base = es.weights[None, :] * g0
         if pair_factor is not None:
@@ -460,7 +462,10 @@ class ForwardModel:
             channels = new
         out = []
         for f, key, spec in channels:
-            geo = (base * f).sum(axis=1) if isinstance(f, np.ndarray) else base.sum(axis=1) * f
+            if per_point:
+                geo = base * f
+            else:
+                geo = (base * f).sum(axis=1) if isinstance(f, np.ndarray) else base.sum(axis=1) * f
             S = es.spectrum_1nm if spec is None else es.spectrum_1nm * spec
             out.append((es.spectral_key + key, S, geo))
         return out
@@ -536,8 +541,24 @@ class ForwardModel:
                 out.append(Term(lamp.group, lamp.id, key, S, geo, None, "direct"))
         return out
 
+    def direct_per_point(self, points, normals=None, *, exclude: Sequence[str] = ()) -> list[PointLight]:
+        """Direct light on physical surfaces (no meter response) emitter point by emitter point,
+        with the direction it comes from: one :class:`PointLight` per emitter set and spectral
+        channel (each lamp's own quadrature, no near-field refinement)."""
+        P, N, m = as_receivers(points, normals, False)
+        out = []
+        for lamp, level in self.ir.lamps_on(self.lighting):
+            for es in self.emitter_sets(lamp, None, level, n_around=PER_POINT_AROUND):
+                d = es.points_mm[None, :, :] - P[:, None, :]
+                u = d / np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-9)
+                for key, S, geo in self._set_terms(es, P, N, m, exclude, None, per_point=True):
+                    geo = np.broadcast_to(geo, u.shape[:2])
+                    out.append(PointLight(Term(lamp.group, lamp.id, (es.tag,) + key, S, None, None, "direct"),
+                                          geo, u))
+        return out
+
     # ------------------------------------------------------------------ secondary emitters
-    def secondary_sources(self) -> list[LambertianSource]:
+    def secondary_sources(self) -> list[LambertianSource | DirectionalSource]:
         key = "_secondary"
         hit = getattr(self, key, None)
         if hit is not None:
@@ -548,6 +569,9 @@ class ForwardModel:
             # light arriving on a physical surface (never read by the meter)
             return self.direct_terms(points, normals, False, exclude=exclude,
                                      incidence_weight=incidence_weight)
+
+        direct.per_point = lambda points, normals, exclude=(): self.direct_per_point(
+            points, normals, exclude=exclude)
 
         for cls, p, fn in self._hooks("secondary_sources"):
             out.extend(fn(self.ctx, p, direct))
@@ -581,7 +605,15 @@ class ForwardModel:
         terms = self.direct_terms(P, N, m, pair_factor=pair_factor)
         for src in self.secondary_sources():
             F = self.lambertian_gather(src.polys, src.normals, P, N, m)
-            geo = F @ src.exitance                               # (M, K)
+            if isinstance(src, DirectionalSource):
+                from .forward_geometry import quad_centroids
+
+                d = P[None, :, :] - quad_centroids(src.polys)[:, None, :]          # (S, M, 3)
+                d = d / np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-9)
+                L = src.radiance(d)                                                # (S, M, K)
+                geo = np.pi * np.einsum("ms,smk->mk", F, L)
+            else:
+                geo = F @ src.exitance                           # (M, K)
             for k, d in enumerate(src.terms):
                 terms.append(replace(d, geo=geo[:, k], geo_bands=None))
         return terms
@@ -623,6 +655,10 @@ class ForwardModel:
 
 
 _GAUSS_ARC = np.polynomial.legendre.leggauss(12)
+#: points around a tube's circumference in :meth:`ForwardModel.direct_per_point`: light that a
+#: surface near a tube receives comes from the tube's visible surface, a spread of directions
+#: (±asin(r/d)) a direction-dependent receiver (a rough plate's BTDF) must see
+PER_POINT_AROUND = 16
 
 
 def _cylinder_slices(d, N, axis, radius_mm):

@@ -18,7 +18,10 @@ meter response      per path, correction at centroid      per ray
 ==================  ====================================  ===========================================
 
 It reads only the IR (spectra, geometry, effect parameters) and never calls
-the forward model's code.  It only supports box interiors (parametric
+the forward model's code; a ``roughness`` plate's directional transmittance
+comes from the rough slab tables (:mod:`lbscene.engine.rough_slab`, the
+model of the plate both share; its regular path only: a plate whose lobe
+is wide is not represented beyond that).  It only supports box interiors (parametric
 booths).  Other truth providers (e.g. a Cycles bake) register with
 :func:`register_truth_provider` and are looked up by name.
 
@@ -364,7 +367,7 @@ class ReferenceEngine:
                     val = val * ~b.crosses(src["pos"], p)
                 if plate is not None:
                     through = plate.crosses(src["pos"], p)
-                    ang = _fresnel_plate(np.abs(u[..., 2]), self.ir.diffuser.ior) / t0
+                    ang = self._plate_angular(np.abs(u[..., 2]), t0)
                     geo_t[a:a + chunk] = (val * through * ang * (1 - fd)).sum(1)
                     geo_n[a:a + chunk] = (val * ~through).sum(1)
                 else:
@@ -373,6 +376,18 @@ class ReferenceEngine:
             if plate is not None:
                 out.append((src["group"], src["spectrum"] * T, geo_t))
         return out
+
+    def _plate_angular(self, cos_i, t0):
+        """Regular transmittance of the plate at incidence ``cos_i`` relative to the clear slab at
+        normal incidence: the clear plate's Fresnel series, or for a ``roughness`` plate the rough
+        slab's directional transmittance (:mod:`lbscene.engine.rough_slab`: two GGX faces,
+        light scattered within its narrow lobe kept on the straight path)."""
+        d = self.ir.diffuser
+        if d.scattering.get("type") == "roughness":
+            from .rough_slab import rough_slab
+
+            return rough_slab(float(d.scattering["roughness"]) ** 2, float(d.ior)).transmittance(cos_i) / t0
+        return _fresnel_plate(cos_i, d.ior) / t0
 
     def _diffuse_fraction(self):
         diff = self.fx["diffuser"]

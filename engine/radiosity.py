@@ -351,16 +351,18 @@ class RadiosityTransport:
         self.rho = ctx.cache[rk]
         self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
-        # transmits inter-reflected light with its regular transmittance
+        # transmits inter-reflected light with its regular transmittance; a rough slab with
+        # its hemispherical transmittance (diffuse light, plate_diffuse_light_factor)
         self.plate_T = None
         self.cross_pp = None
         if "diffuser" in ctx.effects and ir.diffuser is not None:
-            from .effects.catalog import DiffuserEffect, _diffuser_rect
+            from .effects.catalog import DiffuserEffect, _diffuser_rect, plate_diffuse_light_factor
             from .forward_geometry import segment_hits_rectangle
 
             dp = ctx.params("diffuser")
             self.plate_rect = _diffuser_rect(ir)
-            self.plate_T = ir.grid.integrate(DiffuserEffect._spectrum(ctx, dp))       # (B,)
+            self.plate_T = ir.grid.integrate(DiffuserEffect._spectrum(ctx, dp)) * \
+                plate_diffuse_light_factor(ir)                                          # (B,)
             ck = ("plate_cross", p.patch_size_mm)
             if ck not in ctx.cache:
                 c = self.patches.centres

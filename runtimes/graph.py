@@ -47,6 +47,9 @@ plain data (canonical JSON, byte-identical for the same IR):
 ``parameters``
     What a render configuration supplies: view, sample, display, camera,
     viewport, diffuse light source, exposure, dithering.
+``notes``
+    (only when there is something to say) physics of the booth the graph does
+    not represent: a rough diffuser plate's lobe, :func:`diffuser_notes`.
 
 Spectral data flow: 16 bands travel as four RGBA32F blocks (band ``4k + c`` in
 channel ``c`` of block ``k``) from the materials and irradiance through the
@@ -86,6 +89,7 @@ __all__ = [
     "PROFILE_SAMPLES",
     "SAMPLE_LIFT_MM",
     "build_render_graph",
+    "diffuser_notes",
     "write_build_products",
     "load_render_graph",
     "rotation_matrix",
@@ -277,6 +281,12 @@ def _emitters(ir, lighting: str) -> list[dict]:
             fd = (float(diffuser.scattering.get("diffuse_fraction", 0.0))
                   if diffuser.scattering.get("type") == "lambertian" else 0.0)
         trans = trans * (1.0 - float(fd))
+        if diffuser.scattering.get("type") == "roughness":
+            from lbscene.engine.effects.catalog import _slab_relative
+
+            # a rough slab's straight transmittance at normal incidence (the lobe and T(θ) are not
+            # represented: diffuser_notes says so)
+            trans = trans * float(_slab_relative(ir, np.ones(1))[0])
     for lamp, level in ir.lamps_on(lighting):
         emission = grid.integrate(ir.lamp_emission_1nm(lamp)) * level
         below = diffuser is not None and lamp.position_mm[2] > diffuser.z_mm
@@ -304,6 +314,23 @@ def _emitters(ir, lighting: str) -> list[dict]:
             "rotates_with_platform": lamps_rotate,
         })
     return out
+
+
+def diffuser_notes(ir) -> list[str]:
+    """What the realtime graph does not represent of the booth's diffuser plate (empty when
+    nothing is left out): a ``roughness`` plate's scattering lobe and angular transmittance."""
+    d = ir.diffuser
+    if d is None or "diffuser" not in ir.effects or d.scattering.get("type") != "roughness":
+        return []
+    from lbscene.engine.effects.catalog import _rough_slab
+
+    r = float(d.scattering["roughness"])
+    slab = _rough_slab(ir)
+    return [f"diffuser roughness {r:g} (GGX α = {r * r:.4g}): the LTC highlights of lamps behind the "
+            f"plate are sharp and dimmed by its normal-incidence transmittance only; the rough slab's "
+            f"lobe (90 % of its light within {float(slab.lobe_deg(1.0, 0.9)):.2g}° at normal incidence) "
+            f"and its fall with incidence T(θ) are not represented there (the analytic irradiance "
+            f"of surfaces has them)"]
 
 
 def _surfaces(ir) -> dict[str, list[str]]:
@@ -642,6 +669,9 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
         "outputs": {"image": "display_rgba8", "xyz": "xyz", "spectral": list(SPECTRAL_TARGETS[:n_blocks])},
         "shaders": _shader_digest(),
     }
+    notes = diffuser_notes(ir)
+    if notes:
+        graph["notes"] = notes
     return json.loads(json.dumps(graph))  # plain JSON types only
 
 

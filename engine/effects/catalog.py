@@ -11,7 +11,10 @@ id                     kind        physics
 angular_profile        geometric   lamps emit I0·f(θ) (declared profile, or Gaussian σ)
 interreflection        global      radiosity between floor, walls, ceiling, meshes (spectral ρ)
 diffuser               geometric   plate: spectral transmittance, Fresnel angular loss,
-                                   Lambertian re-emission of a diffuse fraction
+                                   Lambertian re-emission of a diffuse fraction; a
+                                   ``roughness`` plate: the rough GGX slab's T(θ) on
+                                   straight paths, or its BTDF on re-emitting cells when
+                                   the lobe is wide (:mod:`lbscene.engine.rough_slab`)
 aperture_occlusion     geometric   occluders (aperture plates, panels) block lamp→point paths
 tube_end_falloff       geometric   tube emission falls linearly toward the ends
 spectral_filter        spectral    a filter's transmittance multiplies a lamp's spectrum
@@ -29,7 +32,7 @@ from pydantic import Field
 
 from lbscene.schemas.base import Identifier
 
-from .physics import (EmitterSet, LambertianSource, PathChannel, PhysicalEffect,
+from .physics import (DirectionalSource, EmitterSet, LambertianSource, PathChannel, PhysicalEffect,
                       fresnel_slab_transmittance)
 from .registry import EffectParams, register_effect
 
@@ -174,9 +177,62 @@ def _diffuser_fraction(ir, p) -> float:
     sc = ir.diffuser.scattering
     if sc.get("type") == "lambertian":
         return float(sc["diffuse_fraction"])
-    # rough glass (GGX roughness, seed 0.04) spreads light by a fraction of a degree: treated as
-    # regular transmission (no diffuse part) unless the booth overrides the fraction
+    # rough glass (GGX roughness) is no Lambertian scatterer: its transmission follows the rough
+    # slab law (_rough_slab), no diffuse part unless the booth overrides the fraction
     return 0.0
+
+
+def _is_rough(ir) -> bool:
+    return ir.diffuser is not None and ir.diffuser.scattering.get("type") == "roughness"
+
+
+def _rough_slab(ir):
+    """The plate's :class:`~lbscene.engine.rough_slab.RoughSlab` (GGX, α = roughness²)."""
+    from lbscene.engine.rough_slab import rough_slab
+
+    d = ir.diffuser
+    return rough_slab(float(d.scattering["roughness"]) ** 2, float(d.ior))
+
+
+def _slab_relative(ir, cos_i) -> np.ndarray:
+    """The plate's directional transmittance at incidence ``cos_i`` relative to the clear slab's
+    at normal incidence, :math:`T(θ_i)/T_0`: the rough slab's (:mod:`~lbscene.engine.rough_slab`)
+    for a ``roughness`` plate, the clear slab's Fresnel law otherwise.  Times the declared
+    transmittance :math:`T_\\text{decl}(λ) = a^2 T_0` it is the plate's transmittance."""
+    from lbscene.engine.rough_slab import clear_slab_normal_transmittance
+
+    if _is_rough(ir):
+        return _rough_slab(ir).transmittance(cos_i) / clear_slab_normal_transmittance(ir.diffuser.ior)
+    return _fresnel_relative(cos_i, ir.diffuser.ior)
+
+
+def _lamp_height_mm(ir, lighting) -> float:
+    """Mean height of the lamps on above the plate (their centres), at least 1 mm."""
+    z = [lp.position_mm[2] - ir.diffuser.z_mm for lp in _lamps_on(ir, lighting)]
+    z = [h for h in z if h > 0]
+    return max(float(np.mean(z)) if z else 1.0, 1.0)
+
+
+def plate_lobe_footprint_mm(ir, lighting) -> float:
+    """Radius on the plate of the rough slab's transmitted lobe (90 % of its light, normal
+    incidence) for light from the lamps on: :math:`h \\tan θ_{90}` with :math:`h` the lamps'
+    mean height above the plate (0 for a plate that is not ``roughness``)."""
+    if not _is_rough(ir):
+        return 0.0
+    l90 = float(_rough_slab(ir).lobe_deg(1.0, 0.9))
+    return _lamp_height_mm(ir, lighting) * np.tan(np.deg2rad(min(l90, 89.0)))
+
+
+def plate_diffuse_light_factor(ir) -> float:
+    """Transmittance of the plate for diffuse (Lambertian) light relative to its declared
+    normal-incidence transmittance: :math:`T_h/T_0` with :math:`T_h = 2\\int_0^1 T(μ) μ\\,dμ`
+    of the rough slab; 1 for other plates (their declared transmittance is used as is)."""
+    from lbscene.engine.rough_slab import clear_slab_normal_transmittance
+
+    if not _is_rough(ir):
+        return 1.0
+    return float(_rough_slab(ir).hemispherical_transmittance()) / \
+        clear_slab_normal_transmittance(ir.diffuser.ior)
 
 
 def _fresnel_relative(cos_i, ior: float) -> np.ndarray:
@@ -222,7 +278,13 @@ class DiffuserEffect(PhysicalEffect):
         diffuse_fraction: float | None = Field(
             None, ge=0, le=1, description="Override of the booth diffuser's diffuse fraction.")
         cell_size_mm: float = Field(50.0, gt=1, le=1000,
-                                    description="Cell size of the re-emitting plate (diffuse part).")
+                                    description="Cell size of the re-emitting plate (diffuse part; "
+                                                "a rough plate's scattered light).")
+        rough_transport: Literal["auto", "regular", "scattered"] = Field(
+            "auto", description="A roughness plate's light: 'regular' (straight paths times the "
+                                "rough slab's transmittance T(θ)), 'scattered' (plate cells "
+                                "re-emit through the slab's BTDF), 'auto' (scattered when the "
+                                "lobe's footprint on the plate exceeds the cell size).")
 
     @classmethod
     def applicable(cls, ir, lighting):
@@ -237,6 +299,15 @@ class DiffuserEffect(PhysicalEffect):
                                          0.0, 1.0)
         return t
 
+    @staticmethod
+    def _scattered(ctx, p) -> bool:
+        """Does a roughness plate's light go through the BTDF source (not straight paths)?"""
+        if not _is_rough(ctx.ir) or p.rough_transport == "regular":
+            return False
+        if p.rough_transport == "scattered":
+            return True
+        return plate_lobe_footprint_mm(ctx.ir, ctx.lighting) > p.cell_size_mm
+
     @classmethod
     def path_factors(cls, ctx, p, es, rx):
         ir = ctx.ir
@@ -245,40 +316,108 @@ class DiffuserEffect(PhysicalEffect):
         hit = ctx.fraction_hitting(es, rx, _diffuser_rect(ir))
         if not hit.any():
             return None
+        if cls._scattered(ctx, p):
+            # every path through the plate is the directional source's (secondary_sources)
+            return [PathChannel(1.0 - hit, None, None)]
 
         def angular():
             d = rx[:, None, :] - es.points_mm[None, :, :]
             cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-            return _fresnel_relative(cos_i, ir.diffuser.ior)
+            return _slab_relative(ir, cos_i)
 
-        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior]), angular)
+        rough = float(ir.diffuser.scattering.get("roughness", -1.0)) if _is_rough(ir) else -1.0
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior, rough]), angular)
         fd = _diffuser_fraction(ir, p)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", cls._spectrum(ctx, p)),
                 PathChannel(1.0 - hit, None, None)]
+
+    @staticmethod
+    def _cells(d, cell_size_mm):
+        """The plate's cells as quads facing down (counter-clockwise seen from below)."""
+        (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
+        nu = max(1, int(np.ceil(sx / cell_size_mm)))
+        nv = max(1, int(np.ceil(sy / cell_size_mm)))
+        xs = cx - sx / 2 + sx * np.arange(nu + 1) / nu
+        ys = cy - sy / 2 + sy * np.arange(nv + 1) / nv
+        X0, Y0 = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
+        X1, Y1 = np.meshgrid(xs[1:], ys[1:], indexing="ij")
+        z = d.z_mm
+        return np.stack([np.stack([X0, Y0, np.full_like(X0, z)], -1),
+                         np.stack([X0, Y1, np.full_like(X0, z)], -1),
+                         np.stack([X1, Y1, np.full_like(X0, z)], -1),
+                         np.stack([X1, Y0, np.full_like(X0, z)], -1)], axis=2).reshape(-1, 4, 3)
+
+    @classmethod
+    def _rough_source(cls, ctx, p, direct, fd):
+        """The rough plate's cells as a :class:`DirectionalSource`: per cell and term
+
+        .. math:: L(ω_o) = (1 - f_d)\\,\\frac{T_\\text{decl}(λ)}{T_0}
+                  \\sum_{s} w_s \\sum_{e} f_T(ω_{i,se}, ω_o)\\, E_{se},
+
+        the slab's non-absorbing BTDF :math:`f_T` (:mod:`~lbscene.engine.rough_slab`) over the
+        irradiance :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` (area
+        weight :math:`w_s`) of the cell's top face, :math:`ω_i` its direction."""
+        from lbscene.engine.forward_geometry import quad_subpoints
+        from lbscene.engine.rough_slab import clear_slab_normal_transmittance
+
+        ir = ctx.ir
+        d = ir.diffuser
+        polys = cls._cells(d, p.cell_size_mm)
+        k = 2
+        pts, w = quad_subpoints(polys, k)
+        top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
+        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
+        slab = _rough_slab(ir)
+        spec = cls._spectrum(ctx, p) / clear_slab_normal_transmittance(d.ior)
+        merged: dict = {}
+        for pl in direct.per_point(top, up, exclude=(cls.id,)):
+            if pl.term.key in merged:
+                t, g, u = merged[pl.term.key]
+                merged[pl.term.key] = (t, np.concatenate([g, pl.geo], 1), np.concatenate([u, pl.from_dir], 1))
+            else:
+                merged[pl.term.key] = (pl.term, np.asarray(pl.geo), pl.from_dir)
+        if not merged:
+            return None
+        C = polys.shape[0]
+        descr, E, cos_i, phi_p = [], [], [], []
+        for t, g, u in merged.values():
+            descr.append(t.derived(spectral_key="diffuser", spectrum_factor=spec, kind="diffuser"))
+            # per cell: (C, k*k*N) irradiance × area weight, incidence cosine, azimuth of the
+            # light's propagation (away from the emitter)
+            E.append(((g.reshape(C, k * k, -1) * w[:, :, None]) * (1.0 - fd)).reshape(C, -1))
+            cos_i.append(np.clip(u[..., 2], 0.0, 1.0).reshape(C, -1))
+            phi_p.append(np.arctan2(-u[..., 1], -u[..., 0]).reshape(C, -1))
+
+        def radiance(dirs):
+            cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
+            phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
+            out = np.zeros(dirs.shape[:2] + (len(descr),))
+            for j in range(len(descr)):
+                f = slab.btdf(cos_i[j][:, None, :], cos_o[:, :, None],
+                              phi_o[:, :, None] - phi_p[j][:, None, :])            # (C, M, n)
+                out[:, :, j] = np.einsum("cmn,cn->cm", f, E[j])
+            return out
+
+        return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
 
     @classmethod
     def secondary_sources(cls, ctx, p, direct):
         from lbscene.engine.forward_geometry import quad_subpoints
 
         ir = ctx.ir
-        fd = _diffuser_fraction(ir, p)
-        if ir.diffuser is None or fd <= 0:
+        if ir.diffuser is None:
             return []
+        fd = _diffuser_fraction(ir, p)
+        out = []
+        if cls._scattered(ctx, p) and fd < 1:
+            src = cls._rough_source(ctx, p, direct, fd)
+            if src is not None:
+                out.append(src)
+        if fd <= 0:
+            return out
         d = ir.diffuser
-        (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
-        nu = max(1, int(np.ceil(sx / p.cell_size_mm)))
-        nv = max(1, int(np.ceil(sy / p.cell_size_mm)))
-        xs = cx - sx / 2 + sx * np.arange(nu + 1) / nu
-        ys = cy - sy / 2 + sy * np.arange(nv + 1) / nv
-        X0, Y0 = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
-        X1, Y1 = np.meshgrid(xs[1:], ys[1:], indexing="ij")
-        z = d.z_mm
-        # facing down (emitting toward the booth): counter-clockwise seen from below
-        polys = np.stack([np.stack([X0, Y0, np.full_like(X0, z)], -1),
-                          np.stack([X0, Y1, np.full_like(X0, z)], -1),
-                          np.stack([X1, Y1, np.full_like(X0, z)], -1),
-                          np.stack([X1, Y0, np.full_like(X0, z)], -1)], axis=2).reshape(-1, 4, 3)
+        polys = cls._cells(d, p.cell_size_mm)
         pts, w = quad_subpoints(polys, 2)
         top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
         up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
@@ -291,9 +430,9 @@ class DiffuserEffect(PhysicalEffect):
             exit_.append(fd * e)
             descr.append(t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser"))
         if not exit_:
-            return []
-        return [LambertianSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)),
-                                 np.stack(exit_, axis=1), descr)]
+            return out
+        return out + [LambertianSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)),
+                                       np.stack(exit_, axis=1), descr)]
 
 
 # --------------------------------------------------------------------------- occluders

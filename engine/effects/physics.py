@@ -21,9 +21,13 @@ Hooks (``ctx`` is a :class:`ForwardContext`, ``p`` the validated ``Params``):
     occluders (0/1), mirrors, a diffuser plate (angle-dependent, with a
     spectral transmittance).  Several channels split the light into parts
     with different spectral multipliers.
-``secondary_sources(ctx, p, direct) -> list[LambertianSource]``
-    Surfaces that re-emit lamp light diffusely (a scattering diffuser);
-    ``direct(points, normals, exclude)`` evaluates direct lamp light.
+``secondary_sources(ctx, p, direct) -> list[LambertianSource | DirectionalSource]``
+    Surfaces that re-emit lamp light: diffusely (a Lambertian diffuser,
+    :class:`LambertianSource`) or with a direction-dependent radiance (a
+    rough glass plate, :class:`DirectionalSource`);
+    ``direct(points, normals, exclude)`` evaluates direct lamp light and
+    ``direct.per_point(points, normals, exclude)`` the same light emitter
+    point by emitter point, with its directions (:class:`PointLight`).
 ``receiver_response(ctx, p, cos_incidence) -> factor``
     Meter response relative to an ideal cosine receiver (only applied to
     illuminance-meter receivers, never to physical surfaces).
@@ -61,6 +65,8 @@ __all__ = [
     "EmitterSet",
     "PathChannel",
     "LambertianSource",
+    "DirectionalSource",
+    "PointLight",
     "ForwardContext",
     "effect_params",
 ]
@@ -128,6 +134,38 @@ class LambertianSource:
     normals: np.ndarray                         # (P, 3) emitting side
     exitance: np.ndarray                        # (P, K) W/m² per unit term spectrum
     terms: list                                 # K term descriptors (group, spectrum_1nm, key)
+
+
+@dataclass(frozen=True)
+class DirectionalSource:
+    """Polygons that re-emit with a direction-dependent radiance.
+
+    ``radiance(directions)`` takes unit directions ``(P, M, 3)`` from each polygon's centroid
+    toward ``M`` receivers and returns the radiance ``(P, M, K)`` leaving the polygon in those
+    directions (W·sr⁻¹·m⁻² per unit term spectrum).  A receiver gets, per polygon,
+    :math:`E = π L(ω)\\,F` with :math:`F` its form factor to the polygon (the radiance taken
+    constant over the polygon toward one receiver).
+    """
+
+    polys: np.ndarray                           # (P, 4, 3)
+    normals: np.ndarray                         # (P, 3) emitting side
+    radiance: Callable[[np.ndarray], np.ndarray]
+    terms: list                                 # K term descriptors (group, spectrum_1nm, key)
+
+
+@dataclass(frozen=True)
+class PointLight:
+    """Direct light at receivers emitter point by emitter point (``direct.per_point``).
+
+    ``geo`` (M, N) is what :meth:`~lbscene.engine.forward.ForwardModel.direct_terms` sums over
+    the points (irradiance per unit term spectrum, path factors included) and ``from_dir``
+    (M, N, 3) the unit direction from each receiver toward each point (where the light comes
+    from).  ``term`` is the term descriptor (transfer empty).
+    """
+
+    term: Any
+    geo: np.ndarray
+    from_dir: np.ndarray
 
 
 @dataclass
@@ -245,7 +283,8 @@ class EffectHooks(Protocol):
                      rx_points: np.ndarray) -> list[PathChannel] | None: ...
 
     @staticmethod
-    def secondary_sources(ctx: ForwardContext, p: Any, direct: Callable) -> list[LambertianSource]: ...
+    def secondary_sources(ctx: ForwardContext, p: Any,
+                          direct: Callable) -> list[LambertianSource | DirectionalSource]: ...
 
     @staticmethod
     def receiver_response(ctx: ForwardContext, p: Any, cos_incidence: np.ndarray) -> np.ndarray: ...
