@@ -85,11 +85,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
-           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS"]
+           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS",
+           "SHIPPED_PLATES", "SHIPPED_TABLES_DIR", "shipped_table_path", "write_shipped_table"]
 
 #: incidence angles of the table (degrees); 90° is the limit T = 0
 THETA_I_DEG = np.r_[np.arange(0.0, 88.0, 2.0), 88.0, 89.0, 89.75]
@@ -107,6 +109,14 @@ MAX_EVENTS = 400
 MIN_WEIGHT = 1e-3
 #: version of the computation (part of the cache key)
 _FORMAT = "rough-slab-2"
+#: plates whose tables travel with lbscene (``(roughness, ior)``; α = roughness²): the shipped
+#: booths' glass plate and common PMMA / glass diffusers, so that the first evaluation of a booth
+#: with one of them does not pay the Monte Carlo (≈ 2–4 s).  Made by
+#: ``scripts/gen_rough_slab_tables.py``; a test checks they are current.
+SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
+                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49))
+#: where the shipped tables live (package data)
+SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
 
 
 def clear_slab_normal_transmittance(ior: float) -> float:
@@ -351,20 +361,65 @@ def _shape():
     return nt, npf
 
 
+def _table_meta(alpha: float, ior: float, photons: int, seed: int) -> str:
+    """What a table was computed with (a shipped table is used only when all of it matches)."""
+    return (f"{_FORMAT}|alpha={float(alpha)!r}|ior={float(ior)!r}|photons={int(photons)}|seed={int(seed)}"
+            f"|bins={BIN_THETA_DEG!r},{BIN_PHI_DEG!r}|events={MAX_EVENTS}|weight={MIN_WEIGHT!r}"
+            f"|theta={','.join(f'{t:g}' for t in THETA_I_DEG)}")
+
+
+def shipped_table_path(roughness: float, ior: float, folder: Path | None = None) -> Path:
+    """The file of a shipped plate's table: ``r<roughness>-n<ior>.npz``."""
+    return Path(folder or SHIPPED_TABLES_DIR) / f"r{float(roughness):g}-n{float(ior):g}.npz"
+
+
+def write_shipped_table(roughness: float, ior: float, folder: Path | None = None) -> Path:
+    """Compute the table of the plate (``roughness``, ``ior``) with the default photons and seed
+    and write it (compressed ``.npz``: the flat table and its :func:`_table_meta`)."""
+    alpha = float(roughness) ** 2
+    path = shipped_table_path(roughness, ior, folder)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    flat = _simulate(alpha, float(ior), PHOTONS, 0)
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(tmp, table=flat, meta=np.array(_table_meta(alpha, ior, PHOTONS, 0)))
+    tmp.replace(path)
+    return path
+
+
+def _shipped(alpha: float, ior: float, photons: int, seed: int) -> np.ndarray | None:
+    """The shipped table for exactly this computation, or None."""
+    if photons != PHOTONS or seed != 0:
+        return None
+    for r, n in SHIPPED_PLATES:
+        if np.isclose(r * r, alpha, rtol=1e-9, atol=0.0) and np.isclose(n, ior, rtol=1e-9, atol=0.0):
+            path = shipped_table_path(r, n)
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    if str(z["meta"]) != _table_meta(r * r, n, photons, seed):
+                        return None                             # made by another version: compute
+                    return np.array(z["table"], float)
+            except (OSError, KeyError, ValueError):
+                return None
+    return None
+
+
 @lru_cache(maxsize=16)
 def rough_slab(alpha: float, ior: float, *, photons: int = PHOTONS, seed: int = 0) -> RoughSlab:
-    """The slab of GGX width ``alpha`` and refractive index ``ior`` (tables computed once and
-    kept in the disk cache, :func:`~lbscene.engine.disk_cache.cached_array`)."""
+    """The slab of GGX width ``alpha`` and refractive index ``ior``: a shipped table
+    (:data:`SHIPPED_PLATES`) when there is one for exactly this computation, else computed once
+    and kept in the disk cache (:func:`~lbscene.engine.disk_cache.cached_array`)."""
     from .disk_cache import cached_array
 
     nt, npf = _shape()
     K = len(THETA_I_DEG)
     width = 6 + nt * npf
-    flat = cached_array("rough_slab", (THETA_I_DEG,),
-                        (_FORMAT, float(alpha), float(ior), int(photons), int(seed), BIN_THETA_DEG,
-                         BIN_PHI_DEG, MAX_EVENTS),
-                        lambda: _simulate(float(alpha), float(ior), int(photons), int(seed)),
-                        shape=(K * width,))
+    flat = _shipped(float(alpha), float(ior), int(photons), int(seed))
+    if flat is None or flat.shape != (K * width,):
+        flat = cached_array("rough_slab", (THETA_I_DEG,),
+                            (_FORMAT, float(alpha), float(ior), int(photons), int(seed), BIN_THETA_DEG,
+                             BIN_PHI_DEG, MAX_EVENTS),
+                            lambda: _simulate(float(alpha), float(ior), int(photons), int(seed)),
+                            shape=(K * width,))
     tab = flat.reshape(K, width)
     return RoughSlab(float(alpha), float(ior), np.cos(np.deg2rad(THETA_I_DEG)), tab[:, 0], tab[:, 1],
                      tab[:, 2], tab[:, 3], tab[:, 4], tab[:, 5], tab[:, 6:].reshape(K, nt, npf))

@@ -179,3 +179,45 @@ def test_rougher_plates_spread_more_and_transmit_less_at_oblique_incidence():
     # light inside at larger angles meets total internal reflection at the exit face
     T60 = [t[1, 0] for t in tabs]
     assert T60[0] > T60[2]
+
+
+# --------------------------------------------------------------------------- shipped tables
+
+@pytest.mark.parametrize("roughness,ior", rs.SHIPPED_PLATES)
+def test_shipped_tables_were_made_by_the_current_computation(roughness, ior):
+    # a changed Monte Carlo (format, bins, photons, limits) without regenerating the shipped
+    # tables makes this fail: run scripts/gen_rough_slab_tables.py
+    path = rs.shipped_table_path(roughness, ior)
+    assert path.is_file(), f"{path.name} is missing: run scripts/gen_rough_slab_tables.py"
+    with np.load(path, allow_pickle=False) as z:
+        assert str(z["meta"]) == rs._table_meta(roughness ** 2, ior, rs.PHOTONS, 0)
+        nt, npf = rs._shape()
+        assert z["table"].shape == (len(rs.THETA_I_DEG) * (6 + nt * npf),)
+
+
+def test_a_shipped_plate_is_read_not_simulated(monkeypatch):
+    rs.rough_slab.cache_clear()
+
+    def boom(*a, **k):
+        raise AssertionError("the shipped table should have been used")
+
+    monkeypatch.setattr(rs, "_simulate", boom)
+    s = rs.rough_slab(0.04 ** 2, 1.52)
+    # a near-clear glass plate: normal transmittance of the clear slab (1 − R0)/(1 + R0)
+    assert s.transmittance(1.0) == pytest.approx(rs.clear_slab_normal_transmittance(1.52), abs=2e-3)
+    rs.rough_slab.cache_clear()
+
+
+def test_a_shipped_table_equals_a_fresh_computation(tmp_path):
+    # the cheapest shipped plate, recomputed with the same photons and seed
+    fresh = rs.write_shipped_table(0.5, 1.49, tmp_path)
+    with np.load(fresh) as a, np.load(rs.shipped_table_path(0.5, 1.49)) as b:
+        assert np.allclose(a["table"], b["table"], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("roughness,ior", rs.SHIPPED_PLATES)
+def test_every_shipped_table_equals_a_fresh_computation(tmp_path, roughness, ior):
+    fresh = rs.write_shipped_table(roughness, ior, tmp_path)
+    with np.load(fresh) as a, np.load(rs.shipped_table_path(roughness, ior)) as b:
+        assert np.allclose(a["table"], b["table"], rtol=1e-9, atol=1e-12)
