@@ -47,6 +47,13 @@ __all__ = ["band_groups", "BlenderScene", "configure_device", "MM"]
 MM = 1e-3  # Blender unit (m) per booth millimetre
 #: samples of tabulated angular profiles over 0..180° (0.1° steps, linear interpolation)
 PROFILE_TABLE_SIZE = 1801
+#: signs (x, y) of the IES Texture node's input vector for C = 90° and C = 0 (see
+#: :meth:`BlenderScene._ies_strength`; established by rendering an asymmetric file)
+IES_NODE_FRAME = (-1.0, -1.0)
+#: the IES Texture node's output per candela of the file: Blender's parser converts candela to
+#: its lamp watts with 4π / 177.83 (the luminous efficacy of D65 it assumes), measured here as
+#: 0.07067 (tests/bakers/test_ies_bake.py)
+IES_NODE_SCALE = 4.0 * math.pi / 177.83
 #: texels per point sensor side (each sensor bakes a k×k block that is averaged)
 SENSOR_BLOCK = 2
 
@@ -320,6 +327,8 @@ class BlenderScene:
         """
         if profile.type == "isotropic":
             return None
+        if profile.type == "ies":
+            return self._ies_strength(nb, profile, aim, group)
         geo = nb.new("ShaderNodeNewGeometry")
         dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
         nb.link(geo.outputs["Incoming"], dot.inputs[0])
@@ -355,6 +364,56 @@ class BlenderScene:
         tex = nb.new("ShaderNodeTexImage", image=img, interpolation="Linear", extension="EXTEND")
         nb.link(comb.outputs[0], tex.inputs["Vector"])
         return tex.outputs["Color"]
+
+    def _ies_strength(self, nb: _Nodes, profile, aim, group=None):
+        """f(γ, C) of an :class:`~lbscene.bakers.job.IesProfile` through Cycles' IES Texture node.
+
+        The node (Blender's own LM-63 parser and symmetry unfolding) is given the emission
+        direction d (Incoming, world space) in the frame it expects: it reads the vertical
+        angle as acos(−z) and the horizontal one as atan2(x, y) + π with the C planes the
+        parser lays out (:data:`IES_NODE_FRAME`), so with a = d·aim, b0 = d·c0, b90 = d·c90
+        the vector is ``(sx·b90, sy·b0, −a)``: γ = 0 along ``aim``, C = 0 along ``c0_axis``,
+        C = 90° along ``c90_axis`` (checked against the file's own numbers in
+        tests/bakers/test_ies_bake.py).  Its output is candela (× multiplier), divided here by
+        ``peak_cd`` × :data:`IES_NODE_SCALE`.
+        """
+        import bpy
+
+        geo = nb.new("ShaderNodeNewGeometry")
+        comps = []
+        for name, vec in (("aim", aim), ("c0", profile.c0_axis), ("c90", profile.c90_axis)):
+            dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
+            nb.link(geo.outputs["Incoming"], dot.inputs[0])
+            dot.inputs[1].default_value = tuple(float(c) for c in vec)
+            if group is not None:
+                self._group_aims.setdefault(group, []).append((dot.inputs[1], tuple(vec)))
+            comps.append(dot.outputs["Value"])
+        a, b0, b90 = comps
+        sx, sy = IES_NODE_FRAME
+        comb = nb.new("ShaderNodeCombineXYZ")
+        nb.link(nb.math("MULTIPLY", b90, float(sx)), comb.inputs["X"])
+        nb.link(nb.math("MULTIPLY", b0, float(sy)), comb.inputs["Y"])
+        nb.link(nb.math("MULTIPLY", a, -1.0), comb.inputs["Z"])
+        text = bpy.data.texts.new(f"ies.{nb.t.name}")
+        text.from_string(profile.ies_text)
+        tex = nb.new("ShaderNodeTexIES", mode="INTERNAL")
+        tex.ies = text
+        tex.inputs["Strength"].default_value = 1.0 / (float(profile.peak_cd) * IES_NODE_SCALE)
+        nb.link(comb.outputs[0], tex.inputs["Vector"])
+        return tex.outputs["Fac"]
+
+    def _axial_weight(self, nb: _Nodes, w):
+        """w(d) of an :class:`~lbscene.bakers.job.AxialWeight` from the shaded point's object-space
+        position (the mesh's own coordinates: group transforms move the object, not them)."""
+        tc = nb.new("ShaderNodeTexCoord")
+        dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
+        nb.link(tc.outputs["Object"], dot.inputs[0])
+        dot.inputs[1].default_value = tuple(float(c) for c in w.axis)
+        c = np.asarray(w.centre_mm, float) * MM
+        s = nb.math("SUBTRACT", dot.outputs["Value"], float(c @ np.asarray(w.axis, float)))
+        d_end = nb.math("SUBTRACT", 0.5 * w.length_mm * MM, nb.math("ABSOLUTE", s))
+        t = nb.math("DIVIDE", d_end, w.falloff_length_mm * MM, clamp=True)
+        return nb.math("ADD", nb.math("MULTIPLY", t, 1.0 - w.end_level), float(w.end_level))
 
     def _window_mask(self, nb: _Nodes, win):
         """1 where the ray light→shaded point crosses the window rectangle, else 0."""
@@ -471,6 +530,10 @@ class BlenderScene:
         # a lamp's modulation: on a surface, Incoming points from the emitting point toward
         # the receiver, as a light shader's does from the light
         strength = self._profile_strength(nb, em.profile, em.aim, em.group)
+        for extra in ((self._axial_weight(nb, em.axial_weight) if em.axial_weight is not None else None),
+                      (self._window_mask(nb, em.window) if em.window is not None else None)):
+            if extra is not None:
+                strength = extra if strength is None else nb.math("MULTIPLY", strength, extra)
         if strength is not None:
             nb.link(strength, emis.inputs["Strength"])
         if em.two_sided:
@@ -484,7 +547,9 @@ class BlenderScene:
             nb.link(mix.outputs[0], out.inputs["Surface"])
             m.cycles.emission_sampling = "FRONT"
         obj.data.materials.append(m)
-        obj.visible_camera = em.visible_to_camera
+        obj.visible_camera = em.visible_to_camera and em.window is None
+        if em.window is not None:
+            self._pending_blockers.append((obj, em.window))
         self._add_to_group(em.group, obj)
         sock = emis.inputs["Color"]
         self._colour_setters.append(lambda idx, s=sock, v=bands: setattr(s, "default_value", _rgb(v, idx)))

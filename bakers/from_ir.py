@@ -15,17 +15,19 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   surface (and caps), a panel's rectangle, a bulb's sphere — of spectral
   radiance ``I_ref / A`` (band means of the 1 nm spectrum, through the lamp's
   filter when ``spectral_filter`` is on), modulated by the declared profile,
-  invisible to camera rays; point lamps as true points.  Lamps with a
-  tube-end falloff or a mirror image (reflector effect) are still
-  ``point_sources`` isotropic points × profile, the seed's approximation, not
-  their surface: the job's notes say so.
+  invisible to camera rays; point lamps as true points.  No lamp falls back
+  to points.
 * **effects** follow the booth's ``effects:`` (or ``effects=``) exactly as the
-  analytic model reads them — angular profile, tube-end falloff, spectral
-  filter, diffuser (a clear sheet with Fresnel angular transmittance and a
-  Lambertian fraction), aperture occlusion (occluders become geometry that
-  blocks *every* lamp), reflector (a mirror image of the lamp that shines
-  only through the mirror's rectangle, the image method) — while Cycles does
-  the geometry: visibility, occlusion, inter-reflection.
+  analytic model reads them — angular profile (IES files in two dimensions
+  through Cycles' own IES parser, C = 0 along the lamp's axis), tube-end
+  falloff (the tube's surface weighted along its axis), spectral filter,
+  diffuser (a clear sheet with Fresnel angular transmittance and a Lambertian
+  fraction), aperture occlusion (occluders become geometry that blocks
+  *every* lamp), reflector (the lamp's surface mirrored across the mirror,
+  radiance × the mirror's reflectance, shining only through the mirror's
+  rectangle: the image method; the lamp's own body is in the image's way, as
+  it is in a real luminaire) — while Cycles does the geometry: visibility,
+  occlusion, inter-reflection.
 * **products**: an equirect environment map 1 mm above the sample position
   (and one per geometry where the platform turns: above the turned sample,
   in its frame) holding all light *but* that seen straight from the point
@@ -47,10 +49,10 @@ from typing import Iterable, Literal
 
 import numpy as np
 
-from .job import (AreaEmitter, BakeJob, BandGridSpec, CosinePowerProfile, EnvironmentMapProduct,
-                  GaussianProfile, IrradianceMapProduct, IrradiancePointsProduct, IsotropicProfile,
-                  JobMaterial, JobMesh, MeasurementPoint, PointEmitters, Quality, RigidTransform,
-                  TableProfile, TransmissiveSheet, Window, save_job)
+from .job import (AreaEmitter, AxialWeight, BakeJob, BandGridSpec, CosinePowerProfile,
+                  EnvironmentMapProduct, GaussianProfile, IesProfile, IrradianceMapProduct,
+                  IrradiancePointsProduct, IsotropicProfile, JobMaterial, JobMesh, MeasurementPoint,
+                  PointEmitters, Quality, RigidTransform, TransmissiveSheet, Window, save_job)
 
 __all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
            "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP", "OCCLUDER_OFFSET_MM"]
@@ -100,35 +102,43 @@ def _profile(lamp, effects):
     if t == "cosine_power":
         return CosinePowerProfile(exponent=float(prof["exponent"]))
     if t == "ies":
+        from lbscene.engine.profiles import ies_text
+
         d = prof["data"]
-        # the bake's profiles are f(θ): an IES file's C-planes are averaged (lighting_job notes it)
-        cd = np.asarray(d["candela"], float).mean(axis=0)
-        return TableProfile(theta_deg=tuple(float(x) for x in d["vertical_deg"]),
-                            relative=tuple(float(x) for x in cd / cd.max()))
+        # LM-63 type C: γ = 0 along aim, C = 0 along the lamp's axis made ⊥ aim, C = 90° along
+        # C0 × aim (the documented orientation, written out here rather than taken from the
+        # model); the file itself goes to Cycles' own IES parser
+        aim = np.asarray(lamp.aim, float) / np.linalg.norm(lamp.aim)
+        ax = np.asarray(lamp.axis, float)
+        e0 = ax - (ax @ aim) * aim
+        if np.linalg.norm(e0) < 1e-9:
+            e0 = np.cross(aim, [1.0, 0.0, 0.0] if abs(aim[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e0 = e0 / np.linalg.norm(e0)
+        return IesProfile(ies_text=ies_text(d), c0_axis=tuple(e0), c90_axis=tuple(np.cross(e0, aim)),
+                          peak_cd=float(np.max(d["candela"])))
     if p.get("sigma_deg") is not None:
         return GaussianProfile(sigma_deg=float(p["sigma_deg"]))
     return IsotropicProfile()
 
 
-def _lamp_points(lamp) -> tuple[np.ndarray, np.ndarray, float]:
-    """Point positions (N, 3), their position along the lamp s ∈ (−½, ½), and the spacing (mm)."""
-    pos = np.asarray(lamp.position_mm, float)
-    axis = np.asarray(lamp.axis, float)
-    n = lamp.point_sources
-    if lamp.kind == "tube" and lamp.length_mm > 0:
-        s = (np.arange(n) + 0.5) / n - 0.5
-        return pos + np.outer(s * lamp.length_mm, axis), s, lamp.length_mm / n
-    if lamp.kind == "panel" and lamp.length_mm > 0:
-        aim = np.asarray(lamp.aim, float)
-        wdir = np.cross(aim, axis)
-        wdir = wdir / (np.linalg.norm(wdir) or 1.0)
-        nu = max(1, int(round(math.sqrt(n * lamp.length_mm / max(lamp.width_mm, 1e-9)))))
-        nv = max(1, int(round(n / nu)))
-        U, W = np.meshgrid((np.arange(nu) + 0.5) / nu - 0.5, (np.arange(nv) + 0.5) / nv - 0.5,
-                           indexing="ij")
-        pts = pos + np.outer(U.ravel() * lamp.length_mm, axis) + np.outer(W.ravel() * lamp.width_mm, wdir)
-        return pts, U.ravel(), min(lamp.length_mm / nu, lamp.width_mm / nv)
-    return pos[None, :], np.zeros(1), math.inf
+def _reflect(u, n) -> np.ndarray:
+    """A direction mirrored in the plane of unit normal ``n``."""
+    u = np.asarray(u, float)
+    return u - 2.0 * (u @ n) * n
+
+
+def _reflect_point(p, c, n) -> np.ndarray:
+    p = np.asarray(p, float)
+    return p - 2.0 * ((p - c) @ n) * n
+
+
+def _mirrored_profile(profile, n):
+    """A lamp's profile as its mirror image emits it: axially symmetric profiles are unchanged
+    (the image's aim is mirrored); an IES frame is mirrored too (the other handedness)."""
+    if isinstance(profile, IesProfile):
+        return profile.model_copy(update={"c0_axis": tuple(_reflect(profile.c0_axis, n)),
+                                          "c90_axis": tuple(_reflect(profile.c90_axis, n))})
+    return profile
 
 
 #: facets around a tube's or bulb's mesh
@@ -329,57 +339,64 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         from lbscene.engine.effects.catalog import lamp_spectrum_1nm
 
         spec = lamp_spectrum_1nm(ir, lamp, effects) * float(level)
-        pts, s, spacing = _lamp_points(lamp)
-        w = np.ones(len(pts))
-        tef = _effect(effects, "tube_end_falloff", lamp.id)
-        if tef is not None and lamp.kind == "tube":
-            d_end = (0.5 - np.abs(s)) * lamp.length_mm
-            t = np.clip(d_end / float(tef.get("falloff_length_mm", 100.0)), 0.0, 1.0)
-            end = float(tef.get("end_level", 0.5))
-            w = end + (1.0 - end) * t
-        per_point = g.integrate(spec) / len(pts)
+        bands = g.integrate(spec)
         profile = _profile(lamp, effects)
-        if isinstance(profile, TableProfile) and len(lamp.profile["data"]["horizontal_deg"]) > 1:
-            notes.append(f"lamp {lamp.id}: its IES C-planes are averaged in the bake (the model "
-                         "honours them)")
         rp = _effect(effects, "reflector", lamp.id)
-        mirrored = rp is not None and lamp.reflector and lamp.reflector in ir.reflectors
-        if lamp.kind != "point" and tef is None and not mirrored:
+        refl = ir.reflectors.get(lamp.reflector) if (rp is not None and lamp.reflector) else None
+        win = _mirror_window(lamp, refl) if refl is not None else None
+        R_bands = None
+        if refl is not None:
+            R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)
+            R_bands = g.integrate(spec * R)
+        if lamp.kind == "point":
+            # a true point (radius 0), as in the analytic model: exact inverse-square law, hard
+            # shadows; camera rays do not see it (see the environment maps' direct product)
+            pos = tuple(float(c) for c in lamp.position_mm)
+            emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim, positions_mm=(pos,),
+                                          intensity_W_sr_nm=tuple(float(x) for x in bands), profile=profile,
+                                          radius_mm=0.0, group=lum_group))
+            if win is not None:
+                n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
+                img = np.asarray(pos) - 2.0 * ((np.asarray(pos) - c) @ n) * n
+                emitters.append(PointEmitters(
+                    id=_jid(f"lamp.{lamp.id}.mirror"), aim=tuple(_reflect(lamp.aim, n)),
+                    positions_mm=(tuple(float(x) for x in img),),
+                    intensity_W_sr_nm=tuple(float(x) for x in R_bands),
+                    profile=_mirrored_profile(profile, n), radius_mm=0.0, group=lum_group, window=win))
+        else:
+            # the lamp's own surface: a tube's lateral surface (and caps), a panel's rectangle,
+            # a bulb's sphere, of radiance I_ref / A; a tube-end falloff weights it along the axis
             v, t, area_m2 = _lamp_mesh(lamp)
+            tef = _effect(effects, "tube_end_falloff", lamp.id)
+            aw = None
+            if tef is not None and lamp.kind == "tube":
+                aw = AxialWeight(centre_mm=tuple(float(x) for x in lamp.position_mm), axis=lamp.axis,
+                                 length_mm=float(lamp.length_mm), end_level=float(tef.get("end_level", 0.5)),
+                                 falloff_length_mm=float(tef.get("falloff_length_mm", 100.0)))
             emitters.append(AreaEmitter(
                 id=_jid(f"lamp.{lamp.id}"), vertices_mm=v, triangles=t,
-                radiance_W_sr_m2_nm=tuple(float(x) for x in g.integrate(spec) / area_m2),
-                profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False))
-            continue
-        if lamp.kind in ("tube", "panel"):
-            notes.append(f"lamp {lamp.id}: {len(pts)} isotropic points × profile (tube-end falloff "
-                         "or mirror image), not its Lambertian surface: the model will differ")
-        # true points (radius 0), as in the analytic model: exact inverse-square law, hard
-        # shadows; camera rays do not see them (see the environment maps' direct product)
-        common = dict(intensity_W_sr_nm=tuple(float(x) for x in per_point), profile=profile,
-                      radius_mm=0.0, group=lum_group,
-                      weights=None if np.allclose(w, 1.0) else tuple(float(x) for x in w))
-        emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim,
-                                      positions_mm=tuple(tuple(float(c) for c in p) for p in pts),
-                                      **common))
-        if mirrored:
-            refl = ir.reflectors[lamp.reflector]
-            win = _mirror_window(lamp, refl)
-            n = np.asarray(win.normal)
-            c = np.asarray(win.centre_mm)
-            img = pts - 2.0 * ((pts - c) @ n)[:, None] * n[None, :]
-            R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)
-            img_bands = g.integrate(spec * R) / len(pts)
-            aim = np.asarray(lamp.aim, float)
-            common["intensity_W_sr_nm"] = tuple(float(x) for x in img_bands)
-            emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}.mirror"),
-                                          aim=tuple(aim - 2.0 * (aim @ n) * n),
-                                          positions_mm=tuple(tuple(float(c) for c in p) for p in img),
-                                          window=win, **common))
+                radiance_W_sr_m2_nm=tuple(float(x) for x in bands / area_m2),
+                profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False, axial_weight=aw))
+            if win is not None:
+                # its mirror image (the image method): the same surface mirrored across the mirror
+                # plane, radiance × the mirror's reflectance, shining only through the mirror
+                n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
+                mv = np.asarray(v, float)
+                mv = mv - 2.0 * ((mv - c) @ n)[:, None] * n[None, :]
+                mt = tuple((a, cc, b) for a, b, cc in t)           # mirrored: keep facing out
+                maw = None if aw is None else aw.model_copy(update={
+                    "centre_mm": tuple(float(x) for x in _reflect_point(aw.centre_mm, c, n)),
+                    "axis": tuple(_reflect(aw.axis, n))})
+                emitters.append(AreaEmitter(
+                    id=_jid(f"lamp.{lamp.id}.mirror"), vertices_mm=tuple(tuple(float(x) for x in p) for p in mv),
+                    triangles=mt, radiance_W_sr_m2_nm=tuple(float(x) for x in R_bands / area_m2),
+                    profile=_mirrored_profile(profile, n), aim=tuple(_reflect(lamp.aim, n)),
+                    group=lum_group, visible_to_camera=False, axial_weight=maw, window=win))
+        if win is not None:
             # the mirror itself: an absorbing plate that blocks the lamp's back light
-            v, t = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
-            meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=v,
-                                  triangles=t, role="mirror", group=lum_group))
+            mv_, mt_ = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
+            meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=mv_,
+                                  triangles=mt_, role="mirror", group=lum_group))
 
     # ---- diffuser
     sheets = []

@@ -20,9 +20,16 @@ Conventions
   I(θ=0) in W·sr⁻¹·nm⁻¹ **per point**; area emitters give spectral radiance in
   W·sr⁻¹·m⁻²·nm⁻¹.  Products come out in W·m⁻²·nm⁻¹ (irradiance) and
   W·sr⁻¹·m⁻²·nm⁻¹ (radiance).
-* Angular profiles are relative, f(0) = 1, θ measured from ``aim``.
+* Angular profiles are relative, f(0) = 1, θ measured from ``aim``; an
+  :class:`IesProfile` is two-dimensional (type C: γ from ``aim``, C = 0 along
+  its ``c0_axis``, C = 90° along its ``c90_axis``) and carries the LM-63 text,
+  which Cycles' own IES parser reads.
+* Area emitters may carry an :class:`AxialWeight` (tube-end falloff) and a
+  :class:`Window` (a mirror image's light leaves only through the mirror).
 
 ``JOB_VERSION`` changes whenever the meaning of the serialised form changes;
+versions in :data:`READABLE_JOB_VERSIONS` still load (version 2 only added
+fields: a version 1 job means what it meant);
 :attr:`BakeJob.content_hash` (sha256 of the canonical JSON) identifies a job
 for the bake cache.
 
@@ -52,6 +59,7 @@ from lbscene.schemas.base import StrictModel
 
 __all__ = [
     "JOB_VERSION",
+    "READABLE_JOB_VERSIONS",
     "JOB_KIND",
     "BandGridSpec",
     "JobMaterial",
@@ -60,6 +68,8 @@ __all__ = [
     "GaussianProfile",
     "CosinePowerProfile",
     "TableProfile",
+    "IesProfile",
+    "AxialWeight",
     "PointEmitters",
     "Window",
     "AreaEmitter",
@@ -79,7 +89,9 @@ __all__ = [
     "canonical_json",
 ]
 
-JOB_VERSION = 1
+JOB_VERSION = 2
+#: versions this lbscene loads (2 added IES profiles, axial weights and windows on area emitters)
+READABLE_JOB_VERSIONS = (1, 2)
 JOB_KIND = "lbscene.bake_job"
 
 Vec3 = tuple[float, float, float]
@@ -230,8 +242,61 @@ class TableProfile(StrictModel):
         return self
 
 
-Profile = Annotated[Union[IsotropicProfile, GaussianProfile, CosinePowerProfile, TableProfile],
+class IesProfile(StrictModel):
+    """IES LM-63 type C photometry in two dimensions: f(γ, C) = I(γ, C) / ``peak_cd``.
+
+    γ is the angle from the emitter's ``aim``; C the angle around it, 0 along ``c0_axis``
+    and 90° along ``c90_axis`` (both ⊥ ``aim``; for a lamp ``c90 = c0 × aim``, for its mirror
+    image the mirrored vectors, a frame of the other handedness).  ``ies_text`` is the file
+    (TILT=NONE), read by Cycles' own IES parser, which unfolds the file's symmetry itself;
+    ``peak_cd`` is its largest candela value (× multiplier).
+    """
+
+    type: Literal["ies"] = "ies"
+    ies_text: str = Field(min_length=1, max_length=4_000_000)
+    c0_axis: Vec3
+    c90_axis: Vec3
+    peak_cd: float = Field(gt=0)
+
+    @field_validator("c0_axis", "c90_axis")
+    @classmethod
+    def _axes(cls, v):
+        return _unit(v, "IES frame axis")
+
+    @model_validator(mode="after")
+    def _frame(self):
+        if abs(sum(a * b for a, b in zip(self.c0_axis, self.c90_axis))) > 1e-6:
+            raise ValueError("c0_axis and c90_axis must be perpendicular")
+        if "TILT=NONE" not in self.ies_text.upper().replace(" ", ""):
+            raise ValueError("ies_text must be an IES LM-63 file with TILT=NONE")
+        return self
+
+
+Profile = Annotated[Union[IsotropicProfile, GaussianProfile, CosinePowerProfile, TableProfile, IesProfile],
                     Field(discriminator="type")]
+
+
+class AxialWeight(StrictModel):
+    """Tube-end falloff on an emitting surface: radiance × w(d), d the distance (mm) from the
+    nearer end along ``axis`` of a tube of ``length_mm`` centred at ``centre_mm``:
+
+    .. math:: w = e + (1 - e)\\,\\mathrm{clip}(d / ℓ_f, 0, 1)
+
+    (``end_level`` e, ``falloff_length_mm`` ℓ_f; the ``tube_end_falloff`` effect).  Evaluated
+    in the emitter's own (untransformed) coordinates, so it turns with its group.
+    """
+
+    type: Literal["linear_ends"] = "linear_ends"
+    centre_mm: Vec3
+    axis: Vec3
+    length_mm: float = Field(gt=0)
+    end_level: float = Field(ge=0, le=1)
+    falloff_length_mm: float = Field(gt=0)
+
+    @field_validator("axis")
+    @classmethod
+    def _axis(cls, v):
+        return _unit(v, "axial weight axis")
 
 
 class Window(StrictModel):
@@ -308,6 +373,15 @@ class AreaEmitter(StrictModel):
     aim: Vec3 = (0.0, 0.0, -1.0)
     #: False for lamps: environment maps leave their straight light to the direct products
     visible_to_camera: bool = True
+    #: radiance × w(position along a tube) (tube-end falloff); None: uniform
+    axial_weight: AxialWeight | None = None
+    #: light leaves only through this rectangle (a mirror image of a lamp); None: everywhere
+    window: Window | None = None
+
+    @field_validator("aim")
+    @classmethod
+    def _aim(cls, v):
+        return _unit(v, "aim")
 
 
 Emitter = Annotated[Union[PointEmitters, AreaEmitter], Field(discriminator="type")]
@@ -571,8 +645,9 @@ class BakeJob(StrictModel):
     @field_validator("job_version")
     @classmethod
     def _version(cls, v):
-        if v != JOB_VERSION:
-            raise ValueError(f"unsupported bake job version {v}; this lbscene runs version {JOB_VERSION}")
+        if v not in READABLE_JOB_VERSIONS:
+            raise ValueError(f"unsupported bake job version {v}; this lbscene reads versions "
+                             f"{', '.join(map(str, READABLE_JOB_VERSIONS))}")
         return v
 
     @model_validator(mode="after")

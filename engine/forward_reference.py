@@ -146,6 +146,75 @@ class _Rect:
         return out
 
 
+class _Cylinder:
+    """A tube's body: the solid cylinder of radius ``r`` about the segment ``p0 → p1``."""
+
+    def __init__(self, p0, p1, r):
+        self.p0 = np.asarray(p0, float)
+        d = np.asarray(p1, float) - self.p0
+        self.length = float(np.linalg.norm(d))
+        self.k = d / self.length
+        self.r = float(r)
+
+    def crosses(self, a, b):
+        """a (N,3) sources, b (M,3) targets → (M,N) bool: the segment passes through the body.
+
+        With s(t) = a + t (b − a): the part of t ∈ [0, 1] inside the infinite cylinder (a
+        quadratic in t, across the axis) meets the part whose axial coordinate lies on the tube."""
+        A = (a - self.p0)[None, :, :] + np.zeros((len(b), 1, 1))
+        D = b[:, None, :] - a[None, :, :]
+        ak, dk = A @ self.k, D @ self.k
+        Ap, Dp = A - ak[..., None] * self.k, D - dk[..., None] * self.k
+        qa = (Dp * Dp).sum(-1)
+        qb = 2.0 * (Ap * Dp).sum(-1)
+        qc = (Ap * Ap).sum(-1) - self.r ** 2
+        disc = qb * qb - 4.0 * qa * qc
+        ok = (disc > 0) & (qa > 1e-12)
+        sq = np.sqrt(np.where(ok, disc, 0.0))
+        qa_ = np.where(ok, qa, 1.0)
+        lo = np.maximum((-qb - sq) / (2 * qa_), 0.0)
+        hi = np.minimum((-qb + sq) / (2 * qa_), 1.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s0, s1 = (0.0 - ak) / dk, (self.length - ak) / dk
+        ax_lo = np.where(dk != 0, np.minimum(s0, s1), np.where((ak >= 0) & (ak <= self.length), -np.inf, np.inf))
+        ax_hi = np.where(dk != 0, np.maximum(s0, s1), np.where((ak >= 0) & (ak <= self.length), np.inf, -np.inf))
+        return ok & (np.maximum(lo, ax_lo) < np.minimum(hi, ax_hi))
+
+
+class _Sphere:
+    """A bulb's body: the solid sphere of radius ``r`` about ``c``."""
+
+    def __init__(self, c, r):
+        self.c = np.asarray(c, float)
+        self.r = float(r)
+
+    def crosses(self, a, b):
+        A = (a - self.c)[None, :, :] + np.zeros((len(b), 1, 1))
+        D = b[:, None, :] - a[None, :, :]
+        qa = (D * D).sum(-1)
+        qb = 2.0 * (A * D).sum(-1)
+        qc = (A * A).sum(-1) - self.r ** 2
+        disc = qb * qb - 4.0 * qa * qc
+        ok = disc > 0
+        sq = np.sqrt(np.where(ok, disc, 0.0))
+        lo = np.maximum((-qb - sq) / (2 * qa), 0.0)
+        hi = np.minimum((-qb + sq) / (2 * qa), 1.0)
+        return ok & (lo < hi)
+
+
+def _own_body(lamp):
+    """The lamp's body that stands in the way of its mirror image (None: a point lamp)."""
+    p = np.asarray(lamp.position_mm, float)
+    if lamp.kind == "tube" and lamp.radius_mm > 0:
+        ax = _norm(np.asarray(lamp.axis, float))
+        return _Cylinder(p - ax * lamp.length_mm / 2, p + ax * lamp.length_mm / 2, lamp.radius_mm)
+    if lamp.kind == "bulb" and lamp.radius_mm > 0:
+        return _Sphere(p, lamp.radius_mm)
+    if lamp.kind == "panel":
+        return _Rect(p, lamp.aim, lamp.axis, (lamp.length_mm / 2, lamp.width_mm / 2))
+    return None
+
+
 # ----------------------------------------------------------------------------- the engine
 
 class ReferenceEngine:
@@ -300,9 +369,12 @@ class ReferenceEngine:
                 ipos = pos - 2 * h[:, None] * rect.n[None, :]
                 inrm = None if nrm is None else nrm - 2 * (nrm @ rect.n)[:, None] * rect.n[None, :]
                 R = np.clip(refl.reflectance.array_1nm * rf.reflectance_scale, 0, 1)
+                # the lamp itself stands between its image and what lies beyond it
+                body = _own_body(lamp)
                 out.append(dict(group=lamp.group, lamp=lamp.id, pos=ipos, nrm=inrm, w=w,
                                 aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
-                                prof=prof, spectrum=spec * R, image_of=rect, blockers=blockers,
+                                prof=prof, spectrum=spec * R, image_of=rect,
+                                blockers=blockers + ([body] if body is not None else []),
                                 mirror=None))
             out.append(dict(group=lamp.group, lamp=lamp.id, pos=pos, nrm=nrm, w=w,
                             aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),

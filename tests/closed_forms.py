@@ -7,9 +7,13 @@ import math
 import numpy as np
 
 
-def cylinder_quadrature_lx(lv_cd_m2, centre_mm, length_mm, radius_mm, p_mm, n, n_along=3000, n_around=720):
+def cylinder_quadrature_lx(lv_cd_m2, centre_mm, length_mm, radius_mm, p_mm, n, n_along=3000, n_around=720,
+                           weight=None, visible=None):
     """Illuminance (lx) at ``p_mm`` (normal ``n``) from a Lambertian cylinder of luminance ``lv_cd_m2``
-    along x: a dense midpoint quadrature over its lateral surface, ∫ L cos θs cos θr / ρ² dA."""
+    along x: a dense midpoint quadrature over its lateral surface, ∫ L w cos θs cos θr / ρ² dA.
+
+    ``weight(x_mm)``: relative luminance at ``x`` along the axis from the centre (default 1);
+    ``visible(points_mm, p_mm)``: which surface elements the receiver sees (default all)."""
     x = (np.arange(n_along) + 0.5) / n_along * length_mm - length_mm / 2
     a = (np.arange(n_around) + 0.5) / n_around * 2 * math.pi
     X, A = np.meshgrid(x, a, indexing="ij")
@@ -20,4 +24,9 @@ def cylinder_quadrature_lx(lv_cd_m2, centre_mm, length_mm, radius_mm, p_mm, n, n
     cs = np.clip((d * nrm).sum(-1) / rho, 0, None)
     cr = np.clip(-(d @ np.asarray(n)) / rho, 0, None)
     da = (length_mm / n_along) * (2 * math.pi * radius_mm / n_around) * 1e-6
-    return float(lv_cd_m2 * (cs * cr / (rho * 1e-3) ** 2).sum() * da)
+    f = cs * cr / (rho * 1e-3) ** 2
+    if weight is not None:
+        f = f * weight(X)
+    if visible is not None:
+        f = f * visible(pts, np.asarray(p_mm, float))
+    return float(lv_cd_m2 * f.sum() * da)

@@ -754,9 +754,17 @@ class ReflectorEffect(PhysicalEffect):
         if not lamp.reflector or not _selected(p, lamp.id) or lamp.reflector not in ctx.ir.reflectors:
             return None
         if es.tag.startswith("image:"):
-            # the image shines only through the mirror's extent
+            # the image shines only through the mirror's extent, and past the lamp itself: light
+            # the mirror sends back toward the lamp's own body is stopped there (below a tube
+            # under its mirror the image is hidden entirely)
             rect = es.meta["mirror"]
-            return [PathChannel(ctx.fraction_hitting(es, rx, rect))]
+            f = ctx.fraction_hitting(es, rx, rect)
+            from lbscene.engine.forward_geometry import lamp_body
+
+            body = lamp_body(lamp) if getattr(lamp, "mount", "booth") == "booth" else None
+            if body is not None:
+                f = f * ctx.fraction_past_body(es, rx, body)
+            return [PathChannel(f)]
         rect = _mirror_rect(ctx.ir, lamp, ctx.ir.reflectors[lamp.reflector])
         blocked = ctx.fraction_hitting(es, rx, rect)
         if not blocked.any():

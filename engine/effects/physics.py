@@ -248,8 +248,89 @@ class ForwardContext:
         return self.memo("hit", key + (np.asarray([es.line_radius_mm]),), ring)
 
 
+    def fraction_past_body(self, es: "EmitterSet", rx: np.ndarray, body) -> np.ndarray:
+        """(M, N) share of each emitter point's light toward each receiver that ``body`` (a
+        :class:`~lbscene.engine.forward_geometry.Capsule`, ``Ball`` or ``Rectangle``) does not
+        stop.  A tube slice of radius r > 0 is averaged over :data:`BODY_RING` lines on its
+        surface, each weighted by its Lambertian ``max(0, n·u)`` toward the receiver, so a
+        body close to it casts a penumbra, not a hard edge."""
+        from lbscene.engine.forward_geometry import Capsule, bodies_block
+
+        rx = np.asarray(rx, float)
+        M, N = len(rx), len(es.points_mm)
+
+        def visible(P):
+            A = np.broadcast_to(P[None, :, :], (M, N, 3)).reshape(-1, 3)
+            B = np.broadcast_to(rx[:, None, :], (M, N, 3)).reshape(-1, 3)
+            return (~bodies_block(A, B, [body])).reshape(M, N).astype(float)
+
+        def compute():
+            if es.line_axis is None or es.line_radius_mm <= 0:
+                return visible(es.points_mm)
+            a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+            a = a / np.linalg.norm(a)
+            if isinstance(body, Capsule):
+                b = np.asarray(body.p1, float) - np.asarray(body.p0, float)
+                if np.linalg.norm(b) > 0 and abs(a @ b) / np.linalg.norm(b) > 1.0 - 1e-9:
+                    return _parallel_cylinder_shadow(es.points_mm, a, es.line_radius_mm, body, rx)
+            e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(a, e1)
+            d = rx[:, None, :] - es.points_mm[None, :, :]
+            num = np.zeros((M, N))
+            den = np.zeros((M, N))
+            for k in range(BODY_RING):
+                phi = 2.0 * np.pi * (k + 0.5) / BODY_RING
+                nk = np.cos(phi) * e1 + np.sin(phi) * e2
+                w = np.clip(d @ nk, 0.0, None)
+                num += w * visible(es.points_mm + es.line_radius_mm * nk)
+                den += w
+            return np.where(den > 0, num / np.maximum(den, 1e-300), 1.0)
+
+        sig = [np.ravel(np.asarray(v, float)) for v in vars(body).values() if v is not None]
+        return self.memo("pastbody", (es.points_mm, rx, np.asarray([es.line_radius_mm]), *sig), compute)
+
+
+def _parallel_cylinder_shadow(points_mm, axis, radius_mm, body, rx) -> np.ndarray:
+    """(M, N) visible share of the light of tube slices (axis points ``points_mm``, radius
+    ``radius_mm``) at receivers ``rx``, past a parallel cylinder ``body`` (a Capsule).
+
+    In the plane across the axis through the receiver R, a Lambertian cylinder is seen with
+    uniform radiance over its angular width :math:`2\\arcsin(r/ρ)`; the body, when nearer to
+    R than the slice and crossing the path within its length, hides the overlap of the two
+    angular intervals.  The share is the uncovered part of the slice's interval (exact for
+    parallel cylinders; the cosine at R is constant over a width of a few degrees)."""
+    rx = np.asarray(rx, float)
+    P = np.asarray(points_mm, float)
+    p0 = np.asarray(body.p0, float)
+    s0, s1 = sorted((float(p0 @ axis), float(np.asarray(body.p1, float) @ axis)))
+    d_i = P[None, :, :] - rx[:, None, :]                           # receiver → slice (M, N, 3)
+    d_t = (p0 - rx)[:, None, :] + np.zeros_like(d_i)               # receiver → body axis
+    perp_i = d_i - (d_i @ axis)[..., None] * axis
+    perp_t = d_t - (d_t @ axis)[..., None] * axis
+    rho_i = np.linalg.norm(perp_i, axis=-1)
+    rho_t = np.linalg.norm(perp_t, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a_i = np.arcsin(np.clip(radius_mm / rho_i, 0.0, 1.0))
+        a_t = np.arcsin(np.clip(body.radius_mm / rho_t, 0.0, 1.0))
+        cosd = np.clip((perp_i * perp_t).sum(-1) / (rho_i * rho_t), -1.0, 1.0)
+        delta = np.arccos(cosd)
+        ov = np.clip(np.minimum(a_i, delta + a_t) - np.maximum(-a_i, delta - a_t), 0.0, None)
+        # where along the axis the path slice → receiver passes the body's depth
+        frac = np.clip(rho_t * cosd / rho_i, 0.0, 1.0)
+    s_rx = rx @ axis
+    s_cross = s_rx[:, None] + frac * ((P @ axis)[None, :] - s_rx[:, None])
+    nearer = (rho_t * cosd < rho_i) & (cosd > 0)
+    within = (s_cross >= s0 - body.radius_mm) & (s_cross <= s1 + body.radius_mm)
+    share = 1.0 - np.where(nearer & within & (a_i > 0), ov / np.maximum(2.0 * a_i, 1e-300), 0.0)
+    return np.where(np.isfinite(share), share, 1.0)
+
+
 #: lines around a tube's surface over which occlusion is averaged
 TUBE_RING = 6
+#: lines around a tube's surface over which a lamp body's shadow on it is averaged (a body as
+#: wide as the tube, close to it, casts a broad penumbra)
+BODY_RING = 24
 #: ... for rectangles closer to the tube than this many radii
 TUBE_RING_REACH = 8.0
 
