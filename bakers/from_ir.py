@@ -16,7 +16,8 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   radiance ``I_ref / A`` (band means of the 1 nm spectrum, through the lamp's
   filter when ``spectral_filter`` is on), modulated by the declared profile,
   invisible to camera rays; point lamps as true points.  No lamp falls back
-  to points.
+  to points.  Lamps that are off are there too, as black bodies in the light's
+  way (as the model's inter-reflection has them, ``lamp_bodies``).
 * **effects** follow the booth's ``effects:`` (or ``effects=``) exactly as the
   analytic model reads them — angular profile (IES files in two dimensions
   through Cycles' own IES parser, C = 0 along the lamp's axis), tube-end
@@ -397,6 +398,18 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             mv_, mt_ = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
             meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=mv_,
                                   triangles=mt_, role="mirror", group=lum_group))
+
+    # ---- the bodies of the lamps that are off: black objects in the light's way, as they are
+    # in the booth (and in the model's inter-reflection, `lamp_bodies`)
+    ip = effects.get("interreflection") or {}
+    if ip.get("lamp_bodies", True) is not False:
+        on_ids = {lp.id for lp, _ in ir.lamps_on(lighting)}
+        for lamp in ir.lamps:
+            if lamp.id in on_ids or lamp.kind == "point" or lamp.mount != "booth":
+                continue
+            v, t, _ = _lamp_mesh(lamp)
+            meshes.append(JobMesh(id=_jid(f"lamp_body.{lamp.id}"), material=BLACK, vertices_mm=v,
+                                  triangles=t, role="lamp_body", group=None))
 
     # ---- diffuser
     sheets = []

@@ -30,3 +30,24 @@ def cylinder_quadrature_lx(lv_cd_m2, centre_mm, length_mm, radius_mm, p_mm, n, n
     if visible is not None:
         f = f * visible(pts, np.asarray(p_mm, float))
     return float(lv_cd_m2 * f.sum() * da)
+
+
+def mirror_image_visible(mirror_z_mm, half_length_mm, half_width_mm, tube_z_mm, radius_mm):
+    """``visible(points, p)`` for :func:`cylinder_quadrature_lx` of a tube's mirror image: the
+    elements whose straight path to ``p`` crosses the mirror rectangle (plane z = ``mirror_z_mm``,
+    |x| ≤ half length, |y| ≤ half width) and misses the real tube (radius ``radius_mm`` about the
+    x axis at z = ``tube_z_mm``, |x| ≤ half length; the path is tested where it passes the
+    tube's height band)."""
+
+    def visible(pts, p):
+        d = p - pts
+        t = (mirror_z_mm - pts[..., 2]) / d[..., 2]
+        ok = (t > 0) & (t < 1) & (np.abs(pts[..., 0] + t * d[..., 0]) <= half_length_mm) & \
+            (np.abs(pts[..., 1] + t * d[..., 1]) <= half_width_mm)
+        for z in np.linspace(tube_z_mm - radius_mm, tube_z_mm + radius_mm, 53):
+            tz = (z - pts[..., 2]) / d[..., 2]
+            x, y = pts[..., 0] + tz * d[..., 0], pts[..., 1] + tz * d[..., 1]
+            ok &= ~((np.hypot(y, z - tube_z_mm) < radius_mm) & (np.abs(x) <= half_length_mm))
+        return ok
+
+    return visible

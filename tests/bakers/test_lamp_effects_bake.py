@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from closed_forms import cylinder_quadrature_lx
+from closed_forms import cylinder_quadrature_lx, mirror_image_visible
 
 from lbscene.bakers.crosscheck import bake_points
 from lbscene.bakers.from_ir import lighting_job
@@ -61,6 +61,8 @@ effects:
   tube_end_falloff: {{lamps: [F], end_level: {END}, falloff_length_mm: {FALL}}}
   reflector: {{lamps: [M]}}
   angular_profile: {{lamps: [I, B]}}
+  # the test's lamps share one place, one lighting each: no off lamp's body around the one on
+  interreflection: {{lamp_bodies: false}}
 """
 
 #: vertical angles (γ) and candela per C plane of the asymmetric full-set file
@@ -129,23 +131,7 @@ def test_tube_end_falloff_on_the_tube_surface(ir):
     assert _ratio_ok(lux, want, noise, 0.01), (lux / want, noise)
 
 
-def _through_mirror_past_the_tube(pts, p):
-    """Image elements whose straight path to ``p`` crosses the mirror rectangle (plane
-    z = H + 35, |x| ≤ ℓ/2, |y| ≤ w/2) and misses the real tube (radius r about the x axis at
-    z = H, |x| ≤ ℓ/2)."""
-    z_m = H_MM + D_MIRROR
-    d = p - pts
-    t = (z_m - pts[..., 2]) / d[..., 2]
-    x = pts[..., 0] + t * d[..., 0]
-    y = pts[..., 1] + t * d[..., 1]
-    ok = (t > 0) & (t < 1) & (np.abs(x) <= LENGTH / 2) & (np.abs(y) <= W_MIRROR / 2)
-    # the tube: sample the path where it passes the tube's height band
-    for z in np.linspace(H_MM - RADIUS, H_MM + RADIUS, 53):
-        tz = (z - pts[..., 2]) / d[..., 2]
-        xz = pts[..., 0] + tz * d[..., 0]
-        yz = pts[..., 1] + tz * d[..., 1]
-        ok &= ~((np.hypot(yz, z - H_MM) < RADIUS) & (np.abs(xz) <= LENGTH / 2))
-    return ok
+_through_mirror_past_the_tube = mirror_image_visible(H_MM + D_MIRROR, LENGTH / 2, W_MIRROR / 2, H_MM, RADIUS)
 
 
 MIRROR_POINTS = np.array([[0, 0, 0], [0, 150, 0], [200, -250, 0], [-100, 450, 0], [0, 700, 300]], float)
@@ -190,3 +176,14 @@ def test_ies_planes_in_two_dimensions(ir, lighting, planes):
     _, lux, noise, _ = bake_points(ir, lighting, pts, surfaces="black", light_paths="direct", samples=16)
     want = np.array([_ies_truth(planes, g, c) for g, c in nodes])
     assert np.allclose(lux, want, rtol=2e-3), np.c_[lux / want, pts]
+
+
+def test_lamps_that_are_off_stand_in_the_bake_as_black_bodies(tmp_path):
+    booth = BOOTH.replace("  interreflection: {lamp_bodies: false}\n", "")
+    (tmp_path / "booth.yaml").write_text(booth)
+    (tmp_path / "full.ies").write_text(_ies(FULL, True))
+    (tmp_path / "bilateral.ies").write_text(_ies(BILATERAL, False))
+    job = lighting_job(compile_booth(tmp_path / "booth.yaml"), "F")
+    bodies = {m.id: m for m in job.meshes if m.role == "lamp_body"}
+    # the other tube is there (black); point lamps have no body; the lamp that is on emits
+    assert set(bodies) == {"lamp_body.M"} and bodies["lamp_body.M"].material == "lbscene_black"

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from closed_forms import cylinder_quadrature_lx
+from closed_forms import cylinder_quadrature_lx, mirror_image_visible
 
 from lbscene.engine.compile import compile_booth
 from lbscene.engine.forward import ForwardModel
@@ -38,17 +38,7 @@ effects:
 """
 
 
-def _visible(pts, p):
-    """Image elements whose path to ``p`` crosses the mirror rectangle and misses the tube."""
-    d = p - pts
-    t = (H + DM - pts[..., 2]) / d[..., 2]
-    ok = (t > 0) & (t < 1) & (np.abs(pts[..., 0] + t * d[..., 0]) <= L / 2) & \
-        (np.abs(pts[..., 1] + t * d[..., 1]) <= WM / 2)
-    for z in np.linspace(H - R, H + R, 53):
-        tz = (z - pts[..., 2]) / d[..., 2]
-        y, x = pts[..., 1] + tz * d[..., 1], pts[..., 0] + tz * d[..., 0]
-        ok &= ~((np.hypot(y, z - H) < R) & (np.abs(x) <= L / 2))
-    return ok
+_visible = mirror_image_visible(H + DM, L / 2, WM / 2, H, R)
 
 
 #: (point, allowed relative error): the last one sees the image cut by the mirror's edge, which
