@@ -52,7 +52,7 @@ PROFILE_TABLE_SIZE = 1801
 IES_NODE_FRAME = (-1.0, -1.0)
 #: the IES Texture node's output per candela of the file: Blender's parser converts candela to
 #: its lamp watts with 4π / 177.83 (the luminous efficacy of D65 it assumes), measured here as
-#: 0.07067 (tests/bakers/test_ies_bake.py)
+#: 0.07067 (tests/bakers/test_lamp_effects_bake.py)
 IES_NODE_SCALE = 4.0 * math.pi / 177.83
 #: texels per point sensor side (each sensor bakes a k×k block that is averaged)
 SENSOR_BLOCK = 2
@@ -374,14 +374,14 @@ class BlenderScene:
         parser lays out (:data:`IES_NODE_FRAME`), so with a = d·aim, b0 = d·c0, b90 = d·c90
         the vector is ``(sx·b90, sy·b0, −a)``: γ = 0 along ``aim``, C = 0 along ``c0_axis``,
         C = 90° along ``c90_axis`` (checked against the file's own numbers in
-        tests/bakers/test_ies_bake.py).  Its output is candela (× multiplier), divided here by
-        ``peak_cd`` × :data:`IES_NODE_SCALE`.
+        tests/bakers/test_lamp_effects_bake.py).  Its output is candela × :data:`IES_NODE_SCALE`,
+        so its strength is 1 / (``peak_cd`` × :data:`IES_NODE_SCALE`).
         """
         import bpy
 
         geo = nb.new("ShaderNodeNewGeometry")
         comps = []
-        for name, vec in (("aim", aim), ("c0", profile.c0_axis), ("c90", profile.c90_axis)):
+        for vec in (aim, profile.c0_axis, profile.c90_axis):
             dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
             nb.link(geo.outputs["Incoming"], dot.inputs[0])
             dot.inputs[1].default_value = tuple(float(c) for c in vec)

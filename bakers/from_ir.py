@@ -129,8 +129,9 @@ def _reflect(u, n) -> np.ndarray:
 
 
 def _reflect_point(p, c, n) -> np.ndarray:
+    """Points ``p`` (3,) or (N, 3) mirrored in the plane through ``c`` of unit normal ``n``."""
     p = np.asarray(p, float)
-    return p - 2.0 * ((p - c) @ n) * n
+    return p - 2.0 * ((p - c) @ n)[..., None] * n
 
 
 def _mirrored_profile(profile, n):
@@ -358,7 +359,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
                                           radius_mm=0.0, group=lum_group))
             if win is not None:
                 n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
-                img = np.asarray(pos) - 2.0 * ((np.asarray(pos) - c) @ n) * n
+                img = _reflect_point(pos, c, n)
                 emitters.append(PointEmitters(
                     id=_jid(f"lamp.{lamp.id}.mirror"), aim=tuple(_reflect(lamp.aim, n)),
                     positions_mm=(tuple(float(x) for x in img),),
@@ -382,8 +383,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
                 # its mirror image (the image method): the same surface mirrored across the mirror
                 # plane, radiance × the mirror's reflectance, shining only through the mirror
                 n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
-                mv = np.asarray(v, float)
-                mv = mv - 2.0 * ((mv - c) @ n)[:, None] * n[None, :]
+                mv = _reflect_point(v, c, n)
                 mt = tuple((a, cc, b) for a, b, cc in t)           # mirrored: keep facing out
                 maw = None if aw is None else aw.model_copy(update={
                     "centre_mm": tuple(float(x) for x in _reflect_point(aw.centre_mm, c, n)),

@@ -761,7 +761,7 @@ class ReflectorEffect(PhysicalEffect):
             f = ctx.fraction_hitting(es, rx, rect)
             from lbscene.engine.forward_geometry import lamp_body
 
-            body = lamp_body(lamp) if getattr(lamp, "mount", "booth") == "booth" else None
+            body = lamp_body(lamp) if lamp.mount == "booth" else None
             if body is not None:
                 f = f * ctx.fraction_past_body(es, rx, body)
             return [PathChannel(f)]

@@ -227,26 +227,11 @@ class ForwardContext:
                              lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
 
         def ring():
-            a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
-            a = a / np.linalg.norm(a)
-            e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(a, e1)
-            d = rx[:, None, :] - es.points_mm[None, :, :]
-            num = np.zeros(d.shape[:2])
-            den = np.zeros(d.shape[:2])
-            for k in range(TUBE_RING):
-                phi = 2.0 * np.pi * (k + 0.5) / TUBE_RING
-                nk = np.cos(phi) * e1 + np.sin(phi) * e2
-                w = np.clip(d @ nk, 0.0, None)            # ∝ max(0, n·u) (common 1/|d| cancels)
-                f = segment_fraction_hitting(es.points_mm + es.line_radius_mm * nk, es.half_step,
-                                             rx, rect)
-                num += w * f
-                den += w
-            return np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+            return _tube_ring_average(
+                es, rx, TUBE_RING, 0.0,
+                lambda P: segment_fraction_hitting(P, es.half_step, rx, rect))
 
         return self.memo("hit", key + (np.asarray([es.line_radius_mm]),), ring)
-
 
     def fraction_past_body(self, es: "EmitterSet", rx: np.ndarray, body) -> np.ndarray:
         """(M, N) share of each emitter point's light toward each receiver that ``body`` (a
@@ -273,22 +258,33 @@ class ForwardContext:
                 b = np.asarray(body.p1, float) - np.asarray(body.p0, float)
                 if np.linalg.norm(b) > 0 and abs(a @ b) / np.linalg.norm(b) > 1.0 - 1e-9:
                     return _parallel_cylinder_shadow(es.points_mm, a, es.line_radius_mm, body, rx)
-            e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(a, e1)
-            d = rx[:, None, :] - es.points_mm[None, :, :]
-            num = np.zeros((M, N))
-            den = np.zeros((M, N))
-            for k in range(BODY_RING):
-                phi = 2.0 * np.pi * (k + 0.5) / BODY_RING
-                nk = np.cos(phi) * e1 + np.sin(phi) * e2
-                w = np.clip(d @ nk, 0.0, None)
-                num += w * visible(es.points_mm + es.line_radius_mm * nk)
-                den += w
-            return np.where(den > 0, num / np.maximum(den, 1e-300), 1.0)
+            return _tube_ring_average(es, rx, BODY_RING, 1.0, visible)
 
         sig = [np.ravel(np.asarray(v, float)) for v in vars(body).values() if v is not None]
         return self.memo("pastbody", (es.points_mm, rx, np.asarray([es.line_radius_mm]), *sig), compute)
+
+
+def _tube_ring_average(es: "EmitterSet", rx: np.ndarray, lines: int, empty: float,
+                       per_line: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """(M, N) average of ``per_line(points)`` over ``lines`` lines on a tube slice's surface
+    (``es.line_radius_mm`` about its axis, mirrored by ``es.direction_map`` for an image),
+    each weighted by its Lambertian ``max(0, n·u)`` toward the receiver (the common 1/|d|
+    cancels); ``empty`` where no line faces the receiver."""
+    a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+    a = a / np.linalg.norm(a)
+    e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    d = np.asarray(rx, float)[:, None, :] - es.points_mm[None, :, :]
+    num = np.zeros(d.shape[:2])
+    den = np.zeros(d.shape[:2])
+    for k in range(lines):
+        phi = 2.0 * np.pi * (k + 0.5) / lines
+        nk = np.cos(phi) * e1 + np.sin(phi) * e2
+        w = np.clip(d @ nk, 0.0, None)
+        num += w * per_line(es.points_mm + es.line_radius_mm * nk)
+        den += w
+    return np.where(den > 0, num / np.maximum(den, 1e-300), empty)
 
 
 def _parallel_cylinder_shadow(points_mm, axis, radius_mm, body, rx) -> np.ndarray:
