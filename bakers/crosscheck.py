@@ -1,4 +1,4 @@
-"""
+r"""
 Cross-check: Cycles (the second engine) against the analytic forward model.
 
 Two comparisons at measurement points (default: the seed's 55-point grid):
@@ -24,6 +24,15 @@ A check *passes* when every point agrees within the tolerance
 times the bake's RMS noise, so a noisy preview bake does not fail for its
 noise alone; at final quality (≤ 1 % noise) the tolerance dominates.
 
+The stricter question, whether the two engines differ by more than the bake's
+noise, is :attr:`CrossCheck.within_noise`: with the per-point relative
+differences :math:`d_i` and the bake's RMS relative noise :math:`σ` (pooled
+over the points: each point's own two-half estimate has a single degree of
+freedom), the mean difference lies within :data:`MEAN_SIGMAS` standard errors
+of zero (:math:`|\bar d| ≤ 3σ/\sqrt n`) and :math:`χ^2 = Σ d_i^2/σ^2` is no
+larger than :math:`n` points of pure noise exceed with probability
+:data:`CHI2_P_MIN`.
+
 Examples
 --------
 >>> from lbscene.engine.compile import compile_booth                       # doctest: +SKIP
@@ -45,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["CrossCheck", "cross_check", "cross_check_all", "bake_points", "MODES",
-           "TOLERANCE_PERCENT", "NOISE_SIGMAS", "CONVERGED_BOUNCES"]
+           "TOLERANCE_PERCENT", "NOISE_SIGMAS", "CONVERGED_BOUNCES", "MEAN_SIGMAS", "CHI2_P_MIN"]
 
 #: effects the Cycles scene cannot represent at a receiver (instrument models)
 INSTRUMENT_EFFECTS = ("detector_cosine_error",)
@@ -56,6 +65,10 @@ TOLERANCE_PERCENT = {"direct": 2.0, "interreflection": 3.0}
 NOISE_SIGMAS = 4.0
 #: Cycles' path depth for the inter-reflection check (the model solves to convergence)
 CONVERGED_BOUNCES = 64
+#: within the noise: the mean difference within this many of its standard errors …
+MEAN_SIGMAS = 3.0
+#: … and χ² of the differences over the per-point noise no less likely than this for noise alone
+CHI2_P_MIN = 1e-3
 
 
 @dataclass
@@ -93,6 +106,28 @@ class CrossCheck:
     def passed(self) -> bool:
         return bool(np.all(np.abs(100.0 * (self.ratio - 1.0)) <= self.tolerance_percent))
 
+    @property
+    def mean_diff_sigmas(self) -> float:
+        """Mean of Cycles/model − 1 in standard errors of that mean (from the bake's noise)."""
+        d = self.ratio - 1.0
+        se = self.noise_rms / np.sqrt(len(d))
+        return float(d.mean() / se) if se > 0 else float("inf") * np.sign(d.mean())
+
+    @property
+    def chi2_p(self) -> float:
+        """Probability that noise alone gives a χ² of the per-point differences this large."""
+        from scipy.stats import chi2
+
+        d = self.ratio - 1.0
+        if self.noise_rms <= 0:
+            return 0.0
+        return float(chi2.sf(np.sum(d ** 2) / self.noise_rms ** 2, len(d)))
+
+    @property
+    def within_noise(self) -> bool:
+        """Whether the two engines agree within the bake's noise (see the module's docstring)."""
+        return bool(abs(self.mean_diff_sigmas) <= MEAN_SIGMAS and self.chi2_p >= CHI2_P_MIN)
+
     def summary(self) -> dict:
         d = 100.0 * (self.ratio - 1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -109,6 +144,10 @@ class CrossCheck:
                 "noise_rms_percent": round(100 * self.noise_rms, 3),
                 "tolerance_percent": round(self.tolerance_percent, 3),
                 "passed": self.passed,
+                "mean_diff_sigmas": (round(self.mean_diff_sigmas, 2) if np.isfinite(self.mean_diff_sigmas)
+                                     else None),
+                "chi2_p": float(f"{self.chi2_p:.3g}"),
+                "within_noise": self.within_noise,
                 "mean_model_lx": round(float(self.model_lx.mean()), 2),
                 "mean_cycles_lx": round(float(self.cycles_lx.mean()), 2),
                 "band_mean_diff_percent": [None if not np.isfinite(x) else round(float(x), 2)

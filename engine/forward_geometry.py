@@ -281,6 +281,8 @@ def _breaks(length_mm: float, patch_size_mm: float, cuts=()) -> np.ndarray:
     knots = [0.0] + sorted(c for c in cuts if 1e-6 < c < 1 - 1e-6) + [1.0]
     out = [0.0]
     for a, b in zip(knots[:-1], knots[1:]):
+        if b - a <= 1e-6:                   # the same cut twice (two occluders in one plane)
+            continue
         n = max(1, int(np.ceil((b - a) * length_mm / patch_size_mm - 1e-9)))
         out.extend(a + (b - a) * np.arange(1, n + 1) / n)
     return np.asarray(out)
@@ -378,13 +380,16 @@ def _as_parallelogram(v: np.ndarray, t: np.ndarray):
 
 def mesh_patches(ir, patch_size_mm: float, roles=("floor", "ceiling", "left_wall", "right_wall",
                                                  "rear_wall", "front_wall", "platform"),
-                 z_cuts_mm=()) -> Patches:
+                 z_cuts_mm=(), cut_planes=()) -> Patches:
     """Cut the IR's interior surfaces into patches of about ``patch_size_mm``.
 
     ``z_cuts_mm``: heights where flat (parallelogram) surfaces are also cut, so that no
     patch straddles a horizontal plate there (a diffuser: a wall patch across it would
-    pass the light of the cavity above to the booth below unfiltered).
+    pass the light of the cavity above to the booth below unfiltered).  ``cut_planes``:
+    further planes ``(point, normal)`` (mm) where they are cut (an occluder standing on a
+    surface: a patch across it would be half in the dark behind it).
     """
+    planes = [((0.0, 0.0, float(z)), (0.0, 0.0, 1.0)) for z in z_cuts_mm] + list(cut_planes)
     polys, mats, surfs = [], [], []
     for s in ir.surfaces:
         if s.role not in roles:
@@ -395,8 +400,12 @@ def mesh_patches(ir, patch_size_mm: float, roles=("floor", "ceiling", "left_wall
             p0, p1, p2, p3 = pg
 
             def cuts(e):
-                dz = e[2]
-                return [(z - p0[2]) / dz for z in z_cuts_mm] if abs(dz) > 1e-9 else []
+                out = []
+                for c, n in planes:
+                    en = float(e @ np.asarray(n, float))
+                    if abs(en) > 1e-9 * np.linalg.norm(e):
+                        out.append(float((np.asarray(c, float) - p0) @ np.asarray(n, float)) / en)
+                return out
 
             nu = _breaks(np.linalg.norm(p1 - p0), patch_size_mm, cuts(p1 - p0))
             nv = _breaks(np.linalg.norm(p3 - p0), patch_size_mm, cuts(p3 - p0))

@@ -10,8 +10,9 @@ realtime renderer finds them.
 
 ``--cross-check`` bakes nothing for the renderer: it compares Cycles with the
 analytic forward model at the 55 grid points (:mod:`lbscene.bakers.crosscheck`),
-direct light and with inter-reflection, and prints the deviations and the
-bake's noise; exit code 1 when a check fails its tolerance.
+direct light and with inter-reflection, and prints the deviations, the
+bake's noise and whether the two engines agree within it; exit code 1 when a
+check fails its tolerance.
 """
 
 from __future__ import annotations
@@ -191,7 +192,9 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     """``--cross-check``: Cycles vs the analytic model at the grid points, per lighting and mode.
 
     The result column shows the per-point tolerance (percent): the mode's
-    agreement target plus four times the bake's RMS noise.
+    agreement target plus four times the bake's RMS noise; "within noise" whether the
+    differences are what the bake's noise alone would give (mean within 3 standard errors,
+    χ² test).
     """
     from rich.console import Console
     from rich.table import Table
@@ -216,12 +219,16 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     else:
         table = Table(title=f"{ir.booth_name}: Cycles / analytic model − 1 at "
                             f"{rows[0]['points'] if rows else 0} grid points ({quality})")
-        for col in ("lighting", "mode", "spp", "time s", "mean %", "max|·| %", "noise %", "result"):
-            table.add_column(col, justify="left" if col in ("lighting", "mode", "result") else "right")
+        for col in ("lighting", "mode", "spp", "time s", "mean %", "max|·| %", "noise %", "mean/σ",
+                    "within noise", "result"):
+            table.add_column(col, justify="left" if col in ("lighting", "mode", "result", "within noise")
+                             else "right")
         for r in rows:
             table.add_row(r["lighting"], "inter-refl." if r["mode"] == "interreflection" else r["mode"],
                           str(r["samples"]), f"{r['time_s']:.1f}", f"{r['mean_diff_percent']:+.2f}",
                           f"{r['max_abs_diff_percent']:.2f}", f"{r['noise_rms_percent']:.2f}",
+                          f"{r['mean_diff_sigmas']:+.1f}", f"{'yes' if r['within_noise'] else 'no'} "
+                          f"(χ² p {r['chi2_p']:.2g})",
                           f"ok ≤{r['tolerance_percent']:.1f}" if r["passed"]
                           else f"FAIL >{r['tolerance_percent']:.1f}")
         Console().print(table)

@@ -123,7 +123,7 @@ def test_direct_light_agrees_with_the_model_on_the_minimal_booth():
 
 @pytest.mark.slow
 def test_white_cavity_lit_from_inside_agrees_with_the_model(cavity_ir):
-    """~25 s: direct light and inter-reflection in the cavity booth, Cycles vs the model."""
+    """~35 s: direct light and inter-reflection in the cavity booth, Cycles vs the model."""
     from lbscene.bakers.products import band_photopic_weights
     from lbscene.engine.forward import ForwardModel
 
@@ -131,11 +131,14 @@ def test_white_cavity_lit_from_inside_agrees_with_the_model(cavity_ir):
     d, limit = _within(direct, 2.0)
     assert np.all(d <= limit), ("direct", d, limit)
 
-    inter = cross_check(cavity_ir, "D65", mode="interreflection", points=POINTS, samples=8192)
+    inter = cross_check(cavity_ir, "D65", mode="interreflection", points=POINTS, samples=16384)
     assert inter.max_bounces == 64                      # converged paths, as the model's radiosity
     assert inter.noise_rms < 0.015, inter.noise_rms
     d, limit = _within(inter, 3.0)
     assert np.all(d <= limit), ("interreflection", d, limit, inter.summary())
+    # the plate lies on the cavity's face: counting its shadow on top of the mesh's (the gather's
+    # two visibilities multiplied) put the model 3 % under Cycles, outside the bake's noise
+    assert inter.within_noise, inter.summary()
     # the cavity is most of the light on the floor ...
     assert inter.cycles_lx.mean() > 1.5 * direct.cycles_lx.mean()
     # ... which the model missed when it left meshes out of its radiosity
