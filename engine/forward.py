@@ -435,18 +435,23 @@ class ForwardModel:
             base = base * w
         channels = [(1.0, (), None)]
         pk = None
+        # receivers no emitter point reaches (facing away: an inter-reflection patch on the far
+        # side of a lamp box's wall) need no path factors: they get none of this set's light
+        live = np.any(base != 0.0, axis=1)
+        sub = None if live.all() or not live.any() else np.nonzero(live)[0]
+        Pp = P if sub is None else P[sub]
         for cls, p, fn in self._hooks("path_factors", exclude):
             # path factors depend on geometry only: cache them across parameter changes (a fit
             # varying σ or intensities never recomputes occlusion, mirrors or the diffuser)
             if pk is None:
                 pk = (array_key(es.points_mm, es.half_step if es.half_step is not None else 0.0),
-                      array_key(P), es.tag, es.lamp_id)
+                      array_key(Pp), es.tag, es.lamp_id)
             ck = (cls.id, repr(p)) + pk
             store = self.ctx.cache.setdefault("_paths", {})
             if ck in store:
                 chs = store[ck]
             else:
-                chs = fn(self.ctx, p, es, P)
+                chs = fn(self.ctx, p, es, Pp)
                 if len(store) >= 256:
                     store.pop(next(iter(store)))
                 store[ck] = chs
@@ -458,7 +463,13 @@ class ForwardModel:
                     k = key + ((ch.spectral_key,) if ch.spectral_key else ())
                     s = spec if ch.spectrum_1nm is None else (
                         ch.spectrum_1nm if spec is None else spec * ch.spectrum_1nm)
-                    new.append((f * ch.factor, k, s))
+                    fac = ch.factor
+                    if sub is not None and isinstance(fac, np.ndarray) and fac.ndim >= 1 and \
+                            fac.shape[0] == sub.size:
+                        full = np.zeros((len(P),) + fac.shape[1:])
+                        full[sub] = fac
+                        fac = full
+                    new.append((f * fac, k, s))
             channels = new
         out = []
         for f, key, spec in channels:

@@ -95,10 +95,11 @@ TRANSPORT_PARAM_STEP = 0.02
 TRANSPORT_PARAM_FLOOR = 1e-3
 #: … down to this size (mm)
 REFINE_MIN_MM = 15.0
-REFINE_MESHES = False
 #: segments sampled between two patches whose mutual view a body (lamp, occluder) may cross
 FF_BODY_PAIRS = 8
-#: a mesh is cut into at least this many patches across its smallest extent
+#: a mesh is cut into at least this many patches across its smallest extent, unless the
+#: effect's ``mesh_patch_size_mm`` says otherwise (the BYK's white cavity, 120 mm deep around
+#: two tube legs: 3 across put the grid 0.7 % above Mitsuba 3, 5 across 0.2 % under it)
 MESH_PATCHES_ACROSS = 3
 
 
@@ -113,12 +114,13 @@ OCCLUDER_NEAR_SUB = 2
 OCCLUDER_PATCH_ASPECT = 3.0
 
 
-def mesh_patch_size_mm(ir, patch_size_mm: float) -> float:
-    """Patch size for the booth's meshes: at most a third of the smallest bounding-box extent
+def mesh_patch_size_mm(ir, patch_size_mm: float, declared_mm: float | None = None) -> float:
+    """Patch size for the booth's meshes: at most 1/:data:`MESH_PATCHES_ACROSS` of the smallest extent
     of any mesh, so a luminaire cavity is cut into several patches across however coarse the
-    booth's patches (the diagnosis solves on 100 mm patches: in the BYK's cavity, 226 mm
-    across its tilted bounding box, the grid's illuminance was 2.7 % below the 50 mm
-    solution with 100 mm patches, 0.5 % with the 75 mm this gives)."""
+    booth's patches (the diagnosis solves on 100 mm patches); ``declared_mm`` (the effect's
+    ``mesh_patch_size_mm``) when the booth sets it."""
+    if declared_mm is not None:
+        return float(declared_mm)
     ext = [np.ptp(s.vertex_array, axis=0) for s in ir.surfaces if s.role == "mesh"]
     if not ext:
         return patch_size_mm
@@ -318,7 +320,8 @@ def _box_cut_planes(ir, occluders) -> list[tuple[np.ndarray, np.ndarray]]:
     return planes
 
 
-def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, occluders=()) -> Patches:
+def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, occluders=(),
+                     mesh_patch_mm: float | None = None) -> Patches:
     """Patches of the box surfaces, refined near ``lamps`` (default: every lamp; the
     transport passes the lamps a lighting turns on), plus both faces of every mesh triangle
     when ``meshes`` (at :func:`mesh_patch_size_mm`) and of every occluder of ``occluders``
@@ -331,8 +334,8 @@ def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, 
                                lamps=lamps)]
     m = o = None
     if meshes:
-        m = mesh_patches(ir, mesh_patch_size_mm(ir, patch_size_mm), roles=("mesh",))
-        m = _both_faces(refine_near_lamps(ir, m, lamps=lamps)) if len(m) and REFINE_MESHES else (_both_faces(m) if len(m) else None)
+        m = mesh_patches(ir, mesh_patch_size_mm(ir, patch_size_mm, mesh_patch_mm), roles=("mesh",))
+        m = _both_faces(m) if len(m) else None
     o = occluder_patches(occluders, patch_size_mm)
     o = o if len(o) else None
     if m is not None and o is not None:
@@ -508,10 +511,11 @@ class RadiosityTransport:
         # occluders cut the box's patches where they stand on it; with a material, they
         # reflect (both faces are patches), as the booth declares
         occ_key = tuple((o.id, o.material, repr(vars(r))) for o, r in occluders)
-        key = ("patches", p.patch_size_mm, p.meshes, lit, occ_key)
+        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key)
         if key not in ctx.cache:
             lamps = [lp for lp in ir.lamps if lp.id in lit]
-            patches = interior_patches(ir, p.patch_size_mm, p.meshes, lamps=lamps, occluders=occluders)
+            patches = interior_patches(ir, p.patch_size_mm, p.meshes, lamps=lamps, occluders=occluders,
+                                       mesh_patch_mm=p.mesh_patch_size_mm)
             from .limits import check_work
 
             check_work("patches", len(patches.polys),
@@ -556,7 +560,7 @@ class RadiosityTransport:
             self.plate_rect = _diffuser_rect(ir)
             self.plate_T = ir.grid.integrate(DiffuserEffect._spectrum(ctx, dp)) * \
                 plate_diffuse_light_factor(ir)                                          # (B,)
-            ck = ("plate_cross", p.patch_size_mm)
+            ck = key + ("plate_cross",)
             if ck not in ctx.cache:
                 c = self.patches.centres
                 ctx.cache[ck] = segment_hits_rectangle(c, c, self.plate_rect)
@@ -879,8 +883,10 @@ class RadiosityTransport:
         if hit is None:        # np.unique over (B, P) rows: ~20 ms, once per reflectance set
             sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
             uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
+            # the patches (with the occluders that cut them) and the bodies that shape F
             hit = self.ctx.cache[ck] = (uniq, inv.ravel(),
-                                        (self.p.patch_size_mm, self.p.max_bounces, array_key(uniq)))
+                                        (self._rho_key, self._body_digest.tobytes(), self.p.max_bounces,
+                                         array_key(uniq)))
         return hit
 
     def _neumann_terms(self, u) -> int | None:

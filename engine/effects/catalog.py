@@ -126,6 +126,11 @@ class InterreflectionEffect(PhysicalEffect):
         reflectance_scale: float = Field(1.0, gt=0, le=3,
                                          description="Multiplier on all surface reflectances "
                                                      "(clipped at 0.99).")
+        mesh_patch_size_mm: float | None = Field(None, gt=1, le=1000,
+                                                 description="Patch size on the booth's meshes "
+                                                             "(default: a third of the smallest "
+                                                             "mesh's smallest extent, at most "
+                                                             "patch_size_mm).")
         meshes: bool = Field(True, description="Include the booth's meshes (luminaire cavity, "
                                                "props): both faces reflect, and they block light "
                                                "between surfaces (visibility tested).")
@@ -159,7 +164,7 @@ class InterreflectionEffect(PhysicalEffect):
 
             # both faces of a mesh are patches, at the (finer) mesh patch size
             n += sum(2.0 * s.area_mm2() for s in ir.surfaces if s.role == "mesh") / \
-                mesh_patch_size_mm(ir, ps) ** 2
+                mesh_patch_size_mm(ir, ps, (params or {}).get("mesh_patch_size_mm")) ** 2
         return 16 * 0.8 * (n / 1000.0) ** 3
 
     @staticmethod
