@@ -346,6 +346,10 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         rp = _effect(effects, "reflector", lamp.id)
         refl = ir.reflectors.get(lamp.reflector) if (rp is not None and lamp.reflector) else None
         win = _mirror_window(lamp, refl) if refl is not None else None
+        if win is not None and turning:
+            notes.append(f"lamp {lamp.id}: its mirror image shines through the mirror as it lies at "
+                         "platform rotation 0; at other rotations the window does not turn with the "
+                         "luminaire (products with a group transform are not exact there)")
         R_bands = None
         if refl is not None:
             R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)

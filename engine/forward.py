@@ -74,6 +74,9 @@ class ForwardOptions:
     near_field: bool = True
     near_field_factor: float = 4.0
     max_points: int = 4000
+    #: at most this many points per lamp before the near-field refinement (None: the lamp's
+    #: ``point_sources``); the inter-reflection's light on its patches uses fewer
+    lamp_points: int | None = None
 
 
 @dataclass
@@ -503,10 +506,10 @@ class ForwardModel:
                 acc[k][1][rows] = geo
 
         allrows = np.arange(len(P))
-        add(self.emitter_sets(lamp, None, level), allrows)
         opt = self.options
+        n = lamp.point_sources if opt.lamp_points is None else max(1, min(lamp.point_sources, opt.lamp_points))
+        add(self.emitter_sets(lamp, n, level), allrows)
         if opt.near_field and lamp.kind in ("tube", "panel") and lamp.length_mm > 0:
-            n = lamp.point_sources
             spacing = lamp.length_mm / n
             c = np.asarray(lamp.position_mm, float)
             ax = np.asarray(lamp.axis, float)

@@ -60,6 +60,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -95,6 +96,10 @@ TRANSPORT_PARAM_STEP = 0.02
 TRANSPORT_PARAM_FLOOR = 1e-3
 #: … down to this size (mm)
 REFINE_MIN_MM = 15.0
+#: points (tube slices, panel cells) per lamp for the light reaching the patches; the forward
+#: model's near-field rule refines them for patches within a few spacings of the lamp (25 instead
+#: of the shipped booths' 100 moved their grids by at most 0.02 %, every lighting)
+TRANSPORT_LAMP_POINTS = 25
 #: segments sampled between two patches whose mutual view a body (lamp, occluder) may cross
 FF_BODY_PAIRS = 8
 #: a mesh is cut into at least this many patches across its smallest extent, unless the
@@ -527,6 +532,7 @@ class RadiosityTransport:
                              shape=(len(patches.polys), len(patches.polys)))
             ctx.cache[key] = (patches, F, blockers)
         self.patches, self.F, self.blockers = ctx.cache[key]
+        self._patch_key = key
         # lamp bodies and occluders (analytic shapes) block patch-to-patch exchange too
         self.bodies = transport_bodies(ctx, p)
         self._body_sig = _body_signature(self.bodies)
@@ -617,23 +623,27 @@ class RadiosityTransport:
         after a bounce, so a fit re-evaluates it when a parameter moves by a step, not at every
         evaluation (a 2 % change of a beam's σ or an opening changes the inter-reflected light
         by a fraction of a percent of itself); the readings' direct light always sees the exact
-        parameters."""
+        parameters.  Its lamps are integrated over at most :data:`TRANSPORT_LAMP_POINTS`
+        points (the near-field rule refines them where a patch is close), not the readings'
+        ``point_sources``."""
         m = self.model
         # numbers as the booth declares them stay exact: only what a fit moves is rounded
         eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if _changes_lamp_light(eid) else p)
                for eid, p in m.effects.items()}
         lo = {lid: _rounded(o) for lid, o in m.ctx.lamp_overrides.items()}
-        if eff == m.effects and lo == m.ctx.lamp_overrides:
+        opts = replace(m.options, lamp_points=TRANSPORT_LAMP_POINTS)
+        if eff == m.effects and lo == m.ctx.lamp_overrides and opts == m.options:
             return m
         from pydantic import ValidationError
 
         from .forward import ForwardModel
 
         try:
-            return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=m.options,
+            return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=opts,
                                 cache=m.ctx.cache)
         except ValidationError:         # rounded past a parameter's bound: exact, then
-            return m
+            return ForwardModel(m.ir, m.lighting, effects=m.effects, lamp_overrides=m.ctx.lamp_overrides,
+                                options=opts, cache=m.ctx.cache)
 
     def _F_past_bodies(self, F: np.ndarray) -> np.ndarray:
         """``F`` times the fraction of each pair's mutual view that no body crosses.
@@ -860,7 +870,7 @@ class RadiosityTransport:
         if self._terms is None:
             tm = self._transport_model()
             lamp_light = {eid: p for eid, p in tm.effects.items() if _changes_lamp_light(eid)}
-            k = (self._rho_key[:4], self._body_sig, tm.lighting,
+            k = (self._patch_key, self._body_sig, tm.lighting,
                  json.dumps(lamp_light, sort_keys=True, default=str),
                  json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str))
             store = self.ctx.cache.setdefault("_rad_first", {})

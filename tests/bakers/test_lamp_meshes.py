@@ -4,6 +4,7 @@ with radiance = reference intensity / projected area (no Blender needed)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -98,3 +99,30 @@ def test_effects_without_a_cycles_backend_are_named_in_the_job(job):
     jb = lighting_job(ir, "A", effects={"detector_cosine_error": {}}, environment=False, maps=False)
     assert "not modelled by the bake" in jb.source["notes"]
     assert "detector_cosine_error" in jb.source["notes"]
+
+
+def test_a_mirror_on_a_turning_luminaire_is_named_in_the_job(tmp_path):
+    """The mirror image's window is placed at platform rotation 0: a job for a luminaire that
+    turns with the platform says so rather than approximating silently."""
+    import shutil
+
+    src = Path(__file__).resolve().parents[2] / "booths" / "byk-byko-spectra-effect"
+    dst = tmp_path / "byk"
+    shutil.copytree(src, dst)
+    y = (dst / "booth.yaml").read_text()
+    y = y.replace("    mount: platform\n    provenance:\n      status: estimate\n      source: \"seed: PL-L 55W/950, N = 100;",
+                  "    mount: platform\n    reflector: mirror\n    provenance:\n      status: estimate\n"
+                  "      source: \"seed: PL-L 55W/950, N = 100;", 1)
+    y = y.replace("occluders:\n", "reflectors:\n  mirror: {type: plane, reflectance: {type: constant, value: 0.9},"
+                  " distance_mm: 30, normal: [0, -0.70710678, -0.70710678], width_mm: 100}\n\noccluders:\n", 1)
+    y = y.replace("effects:\n", "effects:\n  reflector: {}\n", 1)
+    (dst / "booth.yaml").write_text(y)
+    ir = compile_booth(dst / "booth.yaml")
+    assert ir.lamps[0].reflector == "mirror"
+    job = lighting_job(ir, "FL950", environment=False, maps=False)
+    assert "lamp PL-L_leg_a: its mirror image shines through the mirror as it lies at platform rotation 0" \
+        in job.source["notes"]
+    # a booth whose luminaire does not turn gets no such note
+    plain = lighting_job(compile_booth(Path(__file__).resolve().parents[2] / "booths" / "xrite-spectralight-qc"),
+                         "D65", environment=False, maps=False)
+    assert "platform rotation 0" not in plain.source.get("notes", "")

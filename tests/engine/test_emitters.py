@@ -304,3 +304,23 @@ profile: {type: ies, path: lamp.ies}""")
     want = read_ies(d / "lamp.ies", "lamp.ies")
     assert np.array_equal(got.horizontal_deg, want.horizontal_deg)
     assert np.allclose(got.candela, want.candela, rtol=1e-9)
+
+
+@pytest.mark.parametrize("p,n", [
+    ((0, 0, 0), (0, 0, 1)),                 # far below
+    ((0, 0, 660), (0, 0, 1)),               # 27 mm under the tube surface
+    ((250, 45, 700), (0, -1, 0)),           # beside it
+    ((0, 0, 735), (0, 0, -1)),              # a ceiling patch 22 mm above it
+])
+def test_fewer_lamp_points_are_refined_near_the_tube(tmp_path, p, n):
+    """The inter-reflection lights its patches with ``ForwardOptions(lamp_points=25)``; the
+    near-field rule must still integrate the tube finely where a patch is close to it."""
+    from lbscene.engine.forward import ForwardOptions
+    from lbscene.engine.radiosity import TRANSPORT_LAMP_POINTS
+
+    ir = compile_booth(booth(tmp_path, TUBE.format(z=700, l=590, r=13,
+                                                   out="{type: luminance_cd_m2, value_cd_m2: 10000}")))
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    truth = cylinder_quadrature_lx(10000, (0, 0, 700), 590, 13, p, n)
+    fm = ForwardModel(ir, "on", options=ForwardOptions(lamp_points=TRANSPORT_LAMP_POINTS))
+    assert fm.illuminance_lx(np.asarray([p], float), [n])[0] == pytest.approx(truth, rel=2e-3)
