@@ -248,13 +248,9 @@ def _rect_quads(centre, normal, u, half, hole=None):
     def quad(u0, u1, v0, v1):
         return [c + a * u + b * v for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))]
 
-    hu, hv = half
-    if hole is None:
-        quads = [quad(-hu, hu, -hv, hv)]
-    else:
-        ou, ov = hole
-        quads = [quad(-hu, hu, -hv, -ov), quad(-hu, hu, ov, hv),
-                 quad(-hu, -ou, -ov, ov), quad(ou, hu, -ov, ov)]
+    from lbscene.engine.forward_geometry import plate_pieces
+
+    quads = [quad(*q) for q in plate_pieces(half, hole)]
     verts, tris = [], []
     for q in quads:
         b = len(verts)

@@ -44,6 +44,7 @@ __all__ = [
     "segment_fraction_hitting",
     "polygon_form_factor_pairs",
     "Rectangle",
+    "plate_pieces",
     "mesh_triangles",
     "segments_blocked",
     "pyramids_clear_of",
@@ -454,6 +455,23 @@ class Rectangle:
     @property
     def v(self) -> np.ndarray:
         return np.cross(self.normal, self.u)
+
+
+def plate_pieces(half: tuple[float, float], hole_half: tuple[float, float] | None = None
+                 ) -> list[tuple[float, float, float, float]]:
+    """The rectangles ``(u0, u1, v0, v1)`` (in the plate's own u, v, about its centre) that make a
+    plate of half sizes ``half``: itself, or the frame around a centred opening of half sizes
+    ``hole_half`` (two full-width strips and two side pieces; empty pieces left out).
+
+    >>> plate_pieces((2.0, 1.0), (1.0, 0.5))
+    [(-2.0, 2.0, -1.0, -0.5), (-2.0, 2.0, 0.5, 1.0), (-2.0, -1.0, -0.5, 0.5), (1.0, 2.0, -0.5, 0.5)]
+    """
+    hu, hv = float(half[0]), float(half[1])
+    if hole_half is None:
+        return [(-hu, hu, -hv, hv)]
+    ou, ov = min(float(hole_half[0]), hu), min(float(hole_half[1]), hv)
+    pieces = [(-hu, hu, -hv, -ov), (-hu, hu, ov, hv), (-hu, -ou, -ov, ov), (ou, hu, -ov, ov)]
+    return [q for q in pieces if q[1] - q[0] > 1e-9 and q[3] - q[2] > 1e-9]
 
 
 def segment_hits_rectangle(src: np.ndarray, dst: np.ndarray, rect: Rectangle,

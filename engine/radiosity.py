@@ -65,7 +65,7 @@ from dataclasses import replace
 import numpy as np
 
 from .disk_cache import cached_array
-from .forward_geometry import (Patches, _breaks, _grid_quad, bodies_block,
+from .forward_geometry import (Patches, _breaks, _grid_quad, bodies_block, plate_pieces,
                                coplanar_convex_faces, hidden_from_apex, mesh_patches, mesh_triangles,
                                polygon_form_factor, pyramids_clear_of, quad_areas, quad_centroids,
                                quad_r2_points, quad_subpoints, segments_blocked, pairs_near_bodies,
@@ -251,11 +251,7 @@ def occluder_patches(occluders, patch_size_mm: float) -> Patches:
         across = min(patch_size_mm, 2 * min(hu, hv) / OCCLUDER_PATCHES_ACROSS)
         along = min(patch_size_mm, OCCLUDER_PATCH_ASPECT * across)
         size_u, size_v = (along, across) if hu >= hv else (across, along)
-        if r.hole_half is None:
-            pieces = [(-hu, hu, -hv, hv)]
-        else:
-            ou, ov = min(r.hole_half[0], hu), min(r.hole_half[1], hv)
-            pieces = [(-hu, hu, -hv, -ov), (-hu, hu, ov, hv), (-hu, -ou, -ov, ov), (ou, hu, -ov, ov)]
+        pieces = plate_pieces(r.half, r.hole_half)
         # cut along the planes of the occluders that stand on this one (a lamp box's wall on
         # its mask): no patch straddles them
         others = [x for x in occluders if x[0].id != o.id]
@@ -266,8 +262,6 @@ def occluder_patches(occluders, patch_size_mm: float) -> Patches:
             elif abs(pn @ u) < 1e-6 and abs(pn @ v) > 1e-6:
                 cv.append(float((pc - c) @ pn) / float(v @ pn))
         for u0, u1, v0, v1 in pieces:
-            if u1 - u0 <= 1e-9 or v1 - v0 <= 1e-9:
-                continue
             # corners counter-clockwise seen from the normal's side (the face's normal is n)
             q = [c + a * u + b * v for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))]
             nu = _breaks(u1 - u0, size_u, [(x - u0) / (u1 - u0) for x in cu])

@@ -349,6 +349,8 @@ class MitsubaTruth:
     def _occluders(self) -> dict:
         if "aperture_occlusion" not in self.effects:
             return {}
+        from .forward_geometry import plate_pieces
+
         ir = self.ir
         out = {}
         for o in ir.occluders:
@@ -360,19 +362,11 @@ class MitsubaTruth:
             # often lies on a mesh face (an aperture plate that is a cavity's bottom), and two
             # coplanar faces leave which one a ray meets to rounding
             c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * n
-            Hu, Hv = o.size_mm[0] / 2, o.size_mm[1] / 2
             refl = ir.materials[o.material].reflectance.array_1nm if o.material else np.zeros(471)
-            if o.type == "aperture_plate" and o.opening_mm is not None:
-                hu, hv = min(o.opening_mm[0], o.size_mm[0]) / 2, min(o.opening_mm[1], o.size_mm[1]) / 2
-                pieces = [((0.0, (Hv + hv) / 2), (Hu, (Hv - hv) / 2)),
-                          ((0.0, -(Hv + hv) / 2), (Hu, (Hv - hv) / 2)),
-                          (((Hu + hu) / 2, 0.0), ((Hu - hu) / 2, hv)),
-                          ((-(Hu + hu) / 2, 0.0), ((Hu - hu) / 2, hv))]
-            else:
-                pieces = [((0.0, 0.0), (Hu, Hv))]
-            for k, ((cu, cv), (su, sv)) in enumerate(pieces):
-                if su <= 0 or sv <= 0:
-                    continue
+            hole = (o.opening_mm[0] / 2, o.opening_mm[1] / 2) \
+                if o.type == "aperture_plate" and o.opening_mm is not None else None
+            for k, (u0, u1, v0, v1) in enumerate(plate_pieces((o.size_mm[0] / 2, o.size_mm[1] / 2), hole)):
+                cu, cv, su, sv = (u0 + u1) / 2, (v0 + v1) / 2, (u1 - u0) / 2, (v1 - v0) / 2
                 out[f"occluder_{o.id}_{k}"] = {
                     "type": "rectangle",
                     "to_world": _mi().ScalarTransform4f(_frame(u, v, n, c + cu * u + cv * v, su, sv, 1.0)
