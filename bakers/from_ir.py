@@ -54,6 +54,7 @@ from .job import (AreaEmitter, AxialWeight, BakeJob, BandGridSpec, CosinePowerPr
                   EnvironmentMapProduct, GaussianProfile, IesProfile, IrradianceMapProduct,
                   IrradiancePointsProduct, IsotropicProfile, JobMaterial, JobMesh, MeasurementPoint,
                   PointEmitters, Quality, RigidTransform, TransmissiveSheet, Window, save_job)
+from lbscene.engine.forward_geometry import OCCLUDER_OFFSET_MM, plate_pieces
 
 __all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
            "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP", "OCCLUDER_OFFSET_MM"]
@@ -63,8 +64,6 @@ ENV_WIDTH = {"preview": 128, "final": 256}
 #: floor map cell size (mm) per quality preset
 MAP_CELL_MM = {"preview": 50.0, "final": 25.0}
 LUMINAIRE_GROUP = "luminaire"
-#: occluders are drawn this far along their normal (mm), off any coplanar mesh face
-OCCLUDER_OFFSET_MM = 0.1
 BLACK = "lbscene_black"
 
 
@@ -247,8 +246,6 @@ def _rect_quads(centre, normal, u, half, hole=None):
 
     def quad(u0, u1, v0, v1):
         return [c + a * u + b * v for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))]
-
-    from lbscene.engine.forward_geometry import plate_pieces
 
     quads = [quad(*q) for q in plate_pieces(half, hole)]
     verts, tris = [], []

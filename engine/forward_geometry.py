@@ -45,6 +45,7 @@ __all__ = [
     "polygon_form_factor_pairs",
     "Rectangle",
     "plate_pieces",
+    "OCCLUDER_OFFSET_MM",
     "mesh_triangles",
     "segments_blocked",
     "pyramids_clear_of",
@@ -455,6 +456,13 @@ class Rectangle:
     @property
     def v(self) -> np.ndarray:
         return np.cross(self.normal, self.u)
+
+
+#: occluders are drawn this far (mm) along their normal by the renderers (the Cycles bake, the
+#: Mitsuba truth): an occluder often lies on a mesh face (an aperture plate that is a cavity's
+#: bottom), and two coplanar faces leave which one a ray meets to rounding; the forward model's
+#: patches make the same choice (radiosity._coplanar_cover)
+OCCLUDER_OFFSET_MM = 0.1
 
 
 def plate_pieces(half: tuple[float, float], hole_half: tuple[float, float] | None = None

@@ -324,14 +324,14 @@ def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, 
     """Patches of the box surfaces, refined near ``lamps`` (default: every lamp; the
     transport passes the lamps a lighting turns on), plus both faces of every mesh triangle
     when ``meshes`` (at :func:`mesh_patch_size_mm`) and of every occluder of ``occluders``
-    that has a material (:func:`occluder_patches`, refined near the lamps as the box is)."""
+    that has a material (:func:`occluder_patches`)."""
     # walls are cut at a diffuser plate's height, and surfaces along the plane of an occluder
     # that stands on them: no patch straddles a plate or a panel
     z_cuts = (ir.diffuser.z_mm,) if ir.diffuser is not None else ()
     parts = [refine_near_lamps(ir, mesh_patches(ir, patch_size_mm, roles=BOX_ROLES, z_cuts_mm=z_cuts,
                                                 cut_planes=_box_cut_planes(ir, occluders)),
                                lamps=lamps)]
-    m = o = None
+    m = None
     if meshes:
         m = mesh_patches(ir, mesh_patch_size_mm(ir, patch_size_mm, mesh_patch_mm), roles=("mesh",))
         m = _both_faces(m) if len(m) else None
@@ -356,7 +356,7 @@ def _coplanar_cover(m: Patches, o: Patches, occluders, tris: np.ndarray) -> tupl
     the occluder is seen from its front (the side its normal points to) and the mesh from the
     other: mesh patches facing the occluder's way on its rectangle are covered by it, and the
     occluder's back-face patches on a mesh face are covered by the mesh (the Cycles bake draws
-    the occluder a hair in front of the mesh, :data:`~lbscene.bakers.from_ir.OCCLUDER_OFFSET_MM`).
+    the occluder a hair in front of the mesh, :data:`~lbscene.engine.forward_geometry.OCCLUDER_OFFSET_MM`).
     Without this both would reflect the same light."""
     keep_m = np.ones(len(m), bool)
     cm = m.centres
@@ -445,7 +445,7 @@ def transport_bodies(ctx, p) -> list[tuple[str, object]]:
     (:func:`occluder_patches`).  Platform-mounted ones are taken where the IR puts them (the
     platform at rotation 0), as platform-mounted meshes are: a luminaire that turns with the
     platform keeps its lamps, cavity and aperture together (the BYK's two tube legs absorb
-    in its white cavity: leaving them out put the model's light on the grid 25 % above a
+    in its white cavity: leaving them out put the model's light on the grid 34 % above a
     Cycles bake, which draws them).
     """
     from .forward_geometry import lamp_body
@@ -488,6 +488,19 @@ def _body_signature(bodies) -> tuple:
     return tuple(sig)
 
 
+def _hidden_points(P_rx, pts_all, rows, cols, first, count, tris) -> np.ndarray:
+    """(pairs, count) flags: is point ``first … first+count`` of patch ``cols`` hidden by the mesh
+    triangles ``tris`` from receiver ``rows``?  Pairs come sorted by receiver: each receiver
+    tests its patches' points at once."""
+    out = np.empty((len(rows), count), bool)
+    pts = pts_all[:, first:first + count]
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if rows.size else rows
+    for s, e in zip(starts, np.r_[starts[1:], rows.size].astype(int)):
+        c = cols[s:e]
+        out[s:e] = hidden_from_apex(P_rx[rows[s]], pts[c].reshape(-1, 3), tris).reshape(len(c), count)
+    return out
+
+
 def _half_diagonals(polys: np.ndarray) -> np.ndarray:
     c = quad_centroids(polys)
     return np.linalg.norm(polys - c[:, None, :], axis=2).max(axis=1)
@@ -509,7 +522,7 @@ class RadiosityTransport:
         occluders = transport_occluders(ctx)
         # occluders cut the box's patches where they stand on it; with a material, they
         # reflect (both faces are patches), as the booth declares
-        occ_key = tuple((o.id, o.material, repr(vars(r))) for o, r in occluders)
+        occ_key = _body_signature([(f"{o.id}:{o.material}", r) for o, r in occluders])
         key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key)
         if key not in ctx.cache:
             lamps = [lp for lp in ir.lamps if lp.id in lit]
@@ -765,15 +778,10 @@ class RadiosityTransport:
                 # (_gather_visibility): what a body hides counts only where the meshes do not
                 # hide it already (an aperture plate on a cavity's face would otherwise hide
                 # the cavity twice)
-                r = rows[k]
-                starts = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
-                for s_, e_ in zip(starts, np.r_[starts[1:], r.size].astype(int)):
-                    m = np.arange(s_, e_)
-                    for nn in (n_sub, n_fine):
-                        mm = m[n_pts[m] == nn]
-                        if mm.size:
-                            seen[mm, :nn] = ~hidden_from_apex(P_rx[r[s_]], pts[cols[k[mm]], :nn].reshape(-1, 3),
-                                                              tris).reshape(mm.size, nn)
+                for nn in (n_sub, n_fine):
+                    sel = np.nonzero(n_pts == nn)[0]
+                    if sel.size:
+                        seen[sel, :nn] = ~_hidden_points(P_rx, pts, rows[k[sel]], cols[k[sel]], 0, nn, tris)
             den = (seen * w).sum(axis=1)
             num = ((seen & ~hid[k]) * w).sum(axis=1)
             V = np.ones(G.shape)
@@ -800,17 +808,6 @@ class RadiosityTransport:
         nrm = self.patches.normals
         seen = G > 0
         n_sub, n_fine = GATHER_SUB ** 2, GATHER_FINE ** 2
-
-        def hidden_points(pts_all, rows, cols, first, count):
-            """(pairs, count) hidden flags of points first … first+count of each pair's patch."""
-            out = np.empty((len(rows), count), bool)
-            pts = pts_all[:, first:first + count]
-            # pairs come sorted by receiver: each receiver tests its patches' points at once
-            starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if rows.size else rows
-            for s, e in zip(starts, np.r_[starts[1:], rows.size].astype(int)):
-                c = cols[s:e]
-                out[s:e] = hidden_from_apex(P_rx[rows[s]], pts[c].reshape(-1, 3), tris).reshape(len(c), count)
-            return out
 
         def compute():
             faces = coplanar_convex_faces(tris)
@@ -839,12 +836,12 @@ class RadiosityTransport:
             V[rows[dark], cols[dark]] = 0.0
             rows, cols = rows[~dark], cols[~dark]
             # 3. the rest point by point; pairs seen partly get the fine set
-            hid = hidden_points(pts_all, rows, cols, 0, n_sub)
+            hid = _hidden_points(P_rx, pts_all, rows, cols, 0, n_sub, tris)
             V[rows, cols] = ((~hid) * w_sub[cols]).sum(axis=1)
             part = hid.any(axis=1) & ~hid.all(axis=1)
             if part.any():
                 r, c = rows[part], cols[part]
-                more = hidden_points(pts_all, r, c, n_sub, n_fine - n_sub)
+                more = _hidden_points(P_rx, pts_all, r, c, n_sub, n_fine - n_sub, tris)
                 V[r, c] = ((~np.c_[hid[part], more]) * w_fine[c]).sum(axis=1)
             return V
 

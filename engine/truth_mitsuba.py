@@ -90,10 +90,6 @@ DISC_RADIUS_MM = 0.05
 #: disc lifted off the receiver point so that it never coincides with a booth surface
 DISC_LIFT_MM = 0.02
 VARIANT = "scalar_spectral"
-#: occluders are drawn this far (mm) along their normal, off a coplanar mesh face (the Cycles
-#: bake's :data:`~lbscene.bakers.from_ir.OCCLUDER_OFFSET_MM`; the forward model's patches make
-#: the same choice, radiosity._coplanar_cover)
-OCCLUDER_OFFSET_MM = 0.1
 
 #: effects the provider represents (with the restrictions checked in ``_refusals``)
 SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
@@ -349,7 +345,7 @@ class MitsubaTruth:
     def _occluders(self) -> dict:
         if "aperture_occlusion" not in self.effects:
             return {}
-        from .forward_geometry import plate_pieces
+        from .forward_geometry import OCCLUDER_OFFSET_MM, plate_pieces
 
         ir = self.ir
         out = {}
@@ -358,9 +354,7 @@ class MitsubaTruth:
             u = np.asarray(o.u_axis, float)
             u = _unit(u - n * (u @ n))
             v = np.cross(n, u)
-            # a hair to the side the normal points to, as the Cycles bake draws it: an occluder
-            # often lies on a mesh face (an aperture plate that is a cavity's bottom), and two
-            # coplanar faces leave which one a ray meets to rounding
+            # a hair to the side the normal points to, as the Cycles bake draws it
             c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * n
             refl = ir.materials[o.material].reflectance.array_1nm if o.material else np.zeros(471)
             hole = (o.opening_mm[0] / 2, o.opening_mm[1] / 2) \
