@@ -121,7 +121,9 @@ def render_report(res) -> str:
     """The report as an HTML string."""
     j = res.to_json()
     d = res.diagnosis
-    e = html.escape
+    def e(x) -> str:
+        return html.escape(str(x))
+
     parts = [f"<h1>{e(res.meas.name)}</h1>",
              f"<p class=meta>measurements <code>{e(str(res.meas.path))}</code> · booth "
              f"<code>{e(str(res.meas.booth_file))}</code> (IR {e(res.booth_hash[:12])}) · lighting "
