@@ -35,7 +35,7 @@ larger than :math:`n` points of pure noise exceed with probability
 
 Examples
 --------
->>> from lbscene.engine.compile import compile_booth                       # doctest: +SKIP
+>>> from lbscene.engine.scene.compile import compile_booth                       # doctest: +SKIP
 >>> ir = compile_booth("booths/iso3664-p1-d50")                            # doctest: +SKIP
 >>> [(c.mode, round(c.summary()["mean_diff_percent"], 1))                   # doctest: +SKIP
 ...  for c in cross_check_all(ir, "P1", quality="final")]
@@ -191,7 +191,7 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
                 quality: str = "preview", samples: int | None = None, effects=None,
                 out_dir: Path | None = None, progress: bool = False,
                 max_bounces: int | None = None) -> CrossCheck:
-    """Compare Cycles with :class:`lbscene.engine.forward.ForwardModel` at points.
+    """Compare Cycles with :class:`lbscene.engine.light.forward.ForwardModel` at points.
 
     ``max_bounces`` (Cycles' path depth) defaults to the quality preset's for
     ``direct`` (irrelevant there) and, for ``interreflection``, to the model's
@@ -199,7 +199,7 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
     """
     import time
 
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.light.forward import ForwardModel
 
     from .from_ir import grid_points
     from .products import band_photopic_weights

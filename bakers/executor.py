@@ -76,7 +76,7 @@ def is_cached(job: BakeJob, out_dir: Path) -> dict | None:
 def clean_stale_temps(out_dir: Path) -> list[Path]:
     """Remove temporary folders a killed bake of ``out_dir`` left behind (those of live
     processes, e.g. a concurrent bake, are kept)."""
-    from lbscene.engine.outputs import clean_leftovers
+    from lbscene.engine.files.outputs import clean_leftovers
 
     return clean_leftovers(Path(out_dir).parent, Path(out_dir).name)
 

@@ -1,7 +1,7 @@
 """
 Bake jobs from the scene IR: one job per lighting configuration.
 
-:func:`lighting_job` turns a :class:`~lbscene.engine.ir.SceneIR` and a
+:func:`lighting_job` turns a :class:`~lbscene.engine.scene.ir.SceneIR` and a
 lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
 
 * **surfaces**: every IR surface (box walls, floor, ceiling, platform, OBJ/USD
@@ -11,7 +11,7 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   only, through diffuser and mirrors: the cross-check of the model without
   inter-reflection).
 * **lamps** that are on, at their dimming level, as the surfaces they are
-  (:mod:`lbscene.engine.emitters`): emissive meshes — a tube's lateral
+  (:mod:`lbscene.engine.light.emitters`): emissive meshes — a tube's lateral
   surface (and caps), a panel's rectangle, a bulb's sphere — of spectral
   radiance ``I_ref / A`` (band means of the 1 nm spectrum, through the lamp's
   filter when ``spectral_filter`` is on), modulated by the declared profile,
@@ -54,7 +54,7 @@ from .job import (AreaEmitter, AxialWeight, BakeJob, BandGridSpec, CosinePowerPr
                   EnvironmentMapProduct, GaussianProfile, IesProfile, IrradianceMapProduct,
                   IrradiancePointsProduct, IsotropicProfile, JobMaterial, JobMesh, MeasurementPoint,
                   PointEmitters, Quality, RigidTransform, TransmissiveSheet, Window, save_job)
-from lbscene.engine.forward_geometry import OCCLUDER_OFFSET_MM, plate_pieces
+from lbscene.engine.light.geometry import OCCLUDER_OFFSET_MM, plate_pieces
 
 __all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
            "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP", "OCCLUDER_OFFSET_MM"]
@@ -102,7 +102,7 @@ def _profile(lamp, effects):
     if t == "cosine_power":
         return CosinePowerProfile(exponent=float(prof["exponent"]))
     if t == "ies":
-        from lbscene.engine.profiles import ies_text
+        from lbscene.engine.spectra.profiles import ies_text
 
         d = prof["data"]
         # LM-63 type C: γ = 0 along aim, C = 0 along the lamp's axis made ⊥ aim, C = 90° along
@@ -153,7 +153,7 @@ def _lamp_mesh(lamp) -> tuple[tuple, tuple, float]:
     cylinder of the same radius would have 0.16 % less), so radiance × area = ``I_ref``'s
     share exactly.
     """
-    from lbscene.engine.emitters import emitter_from_lamp
+    from lbscene.engine.light.emitters import emitter_from_lamp
 
     em = emitter_from_lamp(lamp)
     c, ax, aim = em.centre_mm, em.axis, em.aim
@@ -270,8 +270,8 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     g = ir.grid
     nb = g.count
     notes = []
-    from lbscene.engine.effects.physics import BACKENDS
-    from lbscene.engine.effects.registry import get_effect
+    from lbscene.engine.light.effects.physics import BACKENDS
+    from lbscene.engine.light.effects.registry import get_effect
 
     # effects a bake does not model are named in the job, never silently dropped (instrument
     # effects describe a meter's reading, not the light in the booth)
@@ -331,7 +331,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     emitters = []
     for lamp, level in ir.lamps_on(lighting):
         # shifted and filtered as the forward model's emitters are (one definition)
-        from lbscene.engine.effects.catalog import lamp_spectrum_1nm
+        from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
 
         spec = lamp_spectrum_1nm(ir, lamp, effects) * float(level)
         bands = g.integrate(spec)
@@ -421,8 +421,8 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         v, t = _rect_quads((d.centre_mm[0], d.centre_mm[1], d.z_mm), (0, 0, -1), (1, 0, 0),
                            (d.size_mm[0] / 2, d.size_mm[1] / 2))
         if sc.get("type") == "roughness":
-            from lbscene.engine.effects.catalog import _rough_slab, _slab_relative
-            from lbscene.engine.effects.physics import fresnel_slab_transmittance
+            from lbscene.engine.light.effects.catalog import _rough_slab, _slab_relative
+            from lbscene.engine.light.effects.physics import fresnel_slab_transmittance
 
             r = float(sc["roughness"])
             c60 = np.array([0.5])

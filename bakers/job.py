@@ -15,7 +15,7 @@ Conventions
   metres (1 Blender unit = 1 m).
 * Every spectral quantity is a tuple of **band means** on the job's band grid
   (default 16 bands, edges 390–710 nm); channel names come from
-  :func:`lbscene.engine.spectral.band_labels`.
+  :func:`lbscene.engine.spectra.bands.band_labels`.
 * Absolute radiometry: point emitters give spectral radiant intensity
   I(θ=0) in W·sr⁻¹·nm⁻¹ **per point**; area emitters give spectral radiance in
   W·sr⁻¹·m⁻²·nm⁻¹.  Products come out in W·m⁻²·nm⁻¹ (irradiance) and
@@ -130,20 +130,20 @@ def _rounded(obj, digits: int = 12):
 
 
 class BandGridSpec(StrictModel):
-    """Contiguous equal-width bands (the engine's :class:`~lbscene.engine.spectral.BandGrid`)."""
+    """Contiguous equal-width bands (the engine's :class:`~lbscene.engine.spectra.bands.BandGrid`)."""
 
     first_centre_nm: float = 400.0
     width_nm: float = Field(20.0, gt=0)
     count: int = Field(16, ge=1, le=64)
 
     def grid(self):
-        from lbscene.engine.spectral import BandGrid
+        from lbscene.engine.spectra.bands import BandGrid
 
         return BandGrid(self.first_centre_nm, self.width_nm, self.count)
 
     def labels(self) -> list[str]:
         """Channel names such as ``'390-410nm'``."""
-        from lbscene.engine.spectral import band_labels
+        from lbscene.engine.spectra.bands import band_labels
 
         return band_labels(self.grid())
 
@@ -463,7 +463,7 @@ class RigidTransform(StrictModel):
         """4×4 homogeneous matrix acting on column vectors in millimetres."""
         import numpy as np
 
-        from lbscene.engine.forward_geometry import rotation_matrix
+        from lbscene.engine.light.geometry import rotation_matrix
 
         R = rotation_matrix(self.axis, self.angle_deg)
         c = np.asarray(self.centre_mm, float)
@@ -747,7 +747,7 @@ class BakeJob(StrictModel):
 
 def save_job(job: BakeJob, path: Path) -> Path:
     """Write a job file (indented canonical JSON, written atomically)."""
-    from lbscene.engine.build import write_atomic
+    from lbscene.engine.scene.build import write_atomic
 
     text = json.dumps(json.loads(job.to_json()), indent=1, sort_keys=True, ensure_ascii=False) + "\n"
     write_atomic(Path(path), text)
@@ -758,9 +758,9 @@ def load_job(path: Path | str) -> BakeJob:
     """Read and validate a job file (raises :class:`LbsceneUserError` with code LB602)."""
     from pydantic import ValidationError
 
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
-    from lbscene.engine.yamlio import read_text_bounded
+    from lbscene.engine.files.yamlio import read_text_bounded
 
     p = Path(path)
     try:

@@ -8,7 +8,7 @@ module and numpy only.
 EXR layout
 ----------
 One file per product, channels named by band (``'390-410nm'`` …, from
-:func:`lbscene.engine.spectral.band_labels`), FLOAT (32-bit), ZIP, rows top
+:func:`lbscene.engine.spectra.bands.band_labels`), FLOAT (32-bit), ZIP, rows top
 to bottom.  Header string attributes: ``lbscene:product``, ``lbscene:type``,
 ``lbscene:units``, ``lbscene:job_hash``, ``lbscene:band_edges_nm`` and, for
 environment maps, ``lbscene:projection``/``lbscene:forward``/``lbscene:up``.
@@ -183,7 +183,7 @@ def read_product(path: Path, labels: list[str] | None = None) -> tuple[np.ndarra
 
 def band_photopic_weights(bands) -> np.ndarray:
     """683·∫_band V(λ) dλ per band (lm·W⁻¹·nm), CIE 1924 V(λ): E_v = Σ E_b · w_b."""
-    from lbscene.engine.spectra import K_M_LM_PER_W, photopic_1nm
+    from lbscene.engine.spectra.evaluate import K_M_LM_PER_W, photopic_1nm
 
     grid = bands.grid() if hasattr(bands, "grid") else bands
     return K_M_LM_PER_W * grid.integrate(photopic_1nm()) * grid.width_nm

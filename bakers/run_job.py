@@ -39,8 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
     args = ap.parse_args(argv)
 
-    from lbscene.engine.build import atomic_replace_dir
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.scene.build import atomic_replace_dir
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     from .job import load_job
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             print(d.format(), file=sys.stderr)
         _emit(event="error", message=str(exc))
         return 2
-    from lbscene.engine.outputs import restore_interrupted, temporary_dir_for
+    from lbscene.engine.files.outputs import restore_interrupted, temporary_dir_for
 
     out_dir = args.out_dir.resolve()
     restore_interrupted(out_dir)

@@ -85,7 +85,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from lbscene.bakers.crosscheck import cross_check_all
-    from lbscene.engine.compile import compile_booth, find_booth_file
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="lbscene-bench-bake-") as tmp:

@@ -47,7 +47,7 @@ def table_band(lightings, refl):
 def table_changed_light(lightings, refl):
     from lbscene.engine.colour.accuracy import delta_e00, xyz_to_lab
     from lbscene.engine.colour.band_weighting import BandWeighting, reference_xyz
-    from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as WL, to_reference
+    from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL, to_reference
 
     def csv(p):
         rows = [r.split(",") for r in Path(p).read_text().splitlines()[1:] if r.strip()]
@@ -135,7 +135,7 @@ def table_banding():
 def table_timing(repeat, lights, refl, displays):
     from lbscene.engine.colour import band_weighting as bwm
     from lbscene.engine.colour.dither import _void_and_cluster, blue_noise, dither_quantise
-    from lbscene.engine.spectral import DEFAULT_GRID
+    from lbscene.engine.spectra.bands import DEFAULT_GRID
 
     print(f"\n5. Timings (best of {repeat}); ratio = time / baseline measured in the same run")
     print(f"{'operation':58s} {'ms':>9s} {'baseline':>44s} {'ratio':>7s}")

@@ -4,7 +4,7 @@ The memory bound of ``lbscene compare``: peak resident memory against the number
 For each booth, a floor grid of N readings (the forward model's own prediction with 1 %
 noise, so the fit converges as on real data) is compared in a fresh process (fit and
 diagnosis, disk cache off); the table gives the peak RSS of that process and the time.
-The per-reading slope is what ``engine/limits.py`` sizes ``LBSCENE_MAX_READINGS`` by.
+The per-reading slope is what ``engine/files/limits.py`` sizes ``LBSCENE_MAX_READINGS`` by.
 
 Run: ``.venv/bin/python benchmarks/bench_limits.py [--booths xrite-spectralight-qc ...] [--n 55 250 1000]``
 """
@@ -33,8 +33,8 @@ _WRAPPER = (
 
 
 def make_set(booth: Path, n: int, out: Path) -> Path:
-    from lbscene.engine.compile import compile_booth, find_booth_file
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
+    from lbscene.engine.light.forward import ForwardModel
 
     ir = compile_booth(find_booth_file(booth))
     lighting = next(iter(ir.lighting))

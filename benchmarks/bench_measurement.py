@@ -46,9 +46,9 @@ def _median_ms(fn, repeat: int) -> float:
 
 
 def forward_table(repeat: int) -> None:
-    from lbscene.engine.compile import compile_booth, find_booth_file
-    from lbscene.engine.forward import ForwardModel
-    from lbscene.engine.forward_synthetic import a3_grid
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
+    from lbscene.engine.light.forward import ForwardModel
+    from lbscene.engine.truth.synthetic import a3_grid
 
     pts = a3_grid()
     print(f"{'booth':26s} {'lighting':9s} {'effects':>7s} {'cold ms':>9s} {'disk ms':>9s} {'warm ms':>9s} "
@@ -59,7 +59,7 @@ def forward_table(repeat: int) -> None:
         eff = {k: dict(v) for k, v in ir.effects.items()}
         with tempfile.TemporaryDirectory() as td:
             # cold: empty memory and disk caches; disk: a new process's first evaluation once the
-            # geometry disk cache holds this booth (engine.disk_cache)
+            # geometry disk cache holds this booth (engine.files.disk_cache)
             os.environ["LBSCENE_CACHE_DIR"] = td
             t0 = time.perf_counter()
             ForwardModel(ir, lighting, cache={}).illuminance_lx(pts)
@@ -86,9 +86,9 @@ def forward_table(repeat: int) -> None:
 
 
 def diagnosis_table() -> None:
-    from lbscene.engine.compare import run_compare
-    from lbscene.engine.compile import compile_booth, find_booth_file
-    from lbscene.engine.forward_synthetic import synthesize
+    from lbscene.engine.loop.compare import run_compare
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
+    from lbscene.engine.truth.synthetic import synthesize
 
     cases = [("hidden-effect booth", REPO / "tests" / "data" / "hidden-effect-booth", "FL",
               {"diffuser": {}}),

@@ -106,7 +106,7 @@ def main(argv=None) -> int:
     import numpy as np
 
     t0 = time.perf_counter()
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.colour_bridge import srgb_display
     from lbscene.runtimes.executor import compile_program, create_context
     from lbscene.runtimes.graph import SHADER_DIR, build_render_graph, compose_shader

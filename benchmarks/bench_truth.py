@@ -7,7 +7,7 @@ One row per validation scene (``tests/data/validation/<scene>``) and grid (``a3`
 ``tests/data/validation/render_truth.py`` with Mitsuba 3; no Mitsuba needed here):
 
 * points: receivers of the grid;
-* RMS %, max %: relative deviation model/truth − 1 (``engine.truth_validation``);
+* RMS %, max %: relative deviation model/truth − 1 (``engine.truth.validation``);
 * noise %: the truth's own Monte Carlo noise, ν = RMS of σ/E;
 * RMS−ν %: the model's RMS with that noise removed in quadrature, √max(0, RMS² − ν²), the
   figure held to the scene's threshold (the issue's: direct light 0.5 %, inter-reflection 1 %,
@@ -44,9 +44,9 @@ def _scenes():
 
 
 def rows(repeat: int) -> list[tuple]:
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward import ForwardModel
-    from lbscene.engine.truth_validation import GRIDS, compare_with_truth
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.light.forward import ForwardModel
+    from lbscene.engine.truth.validation import GRIDS, compare_with_truth
 
     scenes, limits = _scenes()
     out = []
@@ -99,7 +99,7 @@ def main() -> int:
     rs = rows(args.repeat)
     print(text_table(rs))
     if args.markdown:
-        from lbscene.engine.atomic import write_atomic
+        from lbscene.engine.files.atomic import write_atomic
 
         write_atomic(args.markdown, markdown_table(rs))
     return 0

@@ -29,7 +29,7 @@ def _helpers():
 
 
 def row(H, truth: str, known: bool) -> list[str]:
-    from lbscene.engine.compare import run_compare
+    from lbscene.engine.loop.compare import run_compare
 
     with tempfile.TemporaryDirectory() as td:
         td = Path(td)

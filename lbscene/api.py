@@ -3,7 +3,7 @@ The Python API: what the commands do, as functions that return result objects.
 
 Every name here is exported from :mod:`lbscene` and kept stable; the ``lbscene``
 commands are thin wrappers over them.  User mistakes raise
-:class:`~lbscene.engine.diagnostics.LbsceneUserError`, whose ``diagnostics`` carry
+:class:`~lbscene.engine.files.diagnostics.LbsceneUserError`, whose ``diagnostics`` carry
 the located ``LB…`` codes the command line prints.
 
 Examples
@@ -36,11 +36,11 @@ __all__ = [
     "Diagnostic",
 ]
 
-from .engine.diagnostics import Diagnostic, LbsceneUserError
+from .engine.files.diagnostics import Diagnostic, LbsceneUserError
 
 
 def _lazy_forward():
-    from .engine.forward import ForwardModel as _FM
+    from .engine.light.forward import ForwardModel as _FM
 
     return _FM
 
@@ -51,10 +51,10 @@ def load_booth(path: Path | str, *, allowed_dirs: Iterable[Path] = ()):
     Returns the validated :class:`lbscene.schemas.booth.Booth`; schema and semantic errors
     (the linter's error rules) raise :class:`LbsceneUserError`.
     """
-    from .engine.compile import find_booth_file
-    from .engine.diagnostics import Severity
-    from .engine.lint import lint_booth
-    from .engine.load import load_document
+    from .engine.scene.compile import find_booth_file
+    from .engine.files.diagnostics import Severity
+    from .engine.scene.lint import lint_booth
+    from .engine.files.load import load_document
     from .schemas.booth import Booth
 
     doc = load_document(find_booth_file(Path(path)), Booth, allowed_dirs=allowed_dirs)
@@ -65,18 +65,18 @@ def load_booth(path: Path | str, *, allowed_dirs: Iterable[Path] = ()):
 
 
 def compile_booth(path: Path | str, *, allowed_dirs: Iterable[Path] = ()):
-    """Compile a booth into its :class:`lbscene.engine.ir.SceneIR` (typed, hashable)."""
-    from .engine.compile import compile_booth as _compile
-    from .engine.compile import find_booth_file
+    """Compile a booth into its :class:`lbscene.engine.scene.ir.SceneIR` (typed, hashable)."""
+    from .engine.scene.compile import compile_booth as _compile
+    from .engine.scene.compile import find_booth_file
 
     return _compile(find_booth_file(Path(path)), allowed_dirs=tuple(allowed_dirs))
 
 
 def validate(*paths: Path | str, allowed_dirs: Iterable[Path] = ()):
     """Check files and folders as ``validate-config`` does; returns the
-    :class:`lbscene.engine.validate.ValidationReport` (``.files``, ``.diagnostics``: errors and
+    :class:`lbscene.engine.scene.validate.ValidationReport` (``.files``, ``.diagnostics``: errors and
     warnings, never raised)."""
-    from .engine.validate import validate_paths
+    from .engine.scene.validate import validate_paths
 
     return validate_paths([Path(p) for p in paths], allowed_dirs=tuple(Path(d) for d in allowed_dirs))
 
@@ -84,11 +84,11 @@ def validate(*paths: Path | str, allowed_dirs: Iterable[Path] = ()):
 def build(booth: Path | str, out: Path | str, *, lighting: str | None = None, allowed_dirs: Iterable[Path] = ()):
     """Compile and write a build folder (IR, USD stages, bake jobs, render graphs), atomically.
 
-    ``out`` follows the output policy of :mod:`lbscene.engine.outputs`: an existing folder is
-    replaced only if it is an lbscene build.  Returns a :class:`lbscene.engine.build.BuildResult`.
+    ``out`` follows the output policy of :mod:`lbscene.engine.files.outputs`: an existing folder is
+    replaced only if it is an lbscene build.  Returns a :class:`lbscene.engine.scene.build.BuildResult`.
     """
-    from .engine.build import build_booth
-    from .engine.compile import find_booth_file
+    from .engine.scene.build import build_booth
+    from .engine.scene.compile import find_booth_file
 
     return build_booth(find_booth_file(Path(booth)), Path(out), lighting, allowed_dirs=tuple(allowed_dirs))
 
@@ -98,11 +98,11 @@ def compare(measurements: Path | str, *, booth: Path | str | None = None, fit: b
             allowed_dirs: Iterable[Path] = ()):
     """Compare a booth model with a measurement set: fit, residuals, outliers, diagnosis.
 
-    Returns a :class:`lbscene.engine.compare.CompareResult` (``.verdict``, ``.fit``,
+    Returns a :class:`lbscene.engine.loop.compare.CompareResult` (``.verdict``, ``.fit``,
     ``.diagnosis``, ``.to_json()``).  ``history=True`` appends the run to the history next to
     the measurements, as the command does by default.
     """
-    from .engine.compare import run_compare
+    from .engine.loop.compare import run_compare
 
     return run_compare(Path(measurements), booth=booth, fit=fit, do_diagnose=diagnose, history=history,
                        allowed_dirs=tuple(allowed_dirs), keep_outliers=keep_outliers)
@@ -111,7 +111,7 @@ def compare(measurements: Path | str, *, booth: Path | str | None = None, fit: b
 def plan(measurements: Path | str, *, booth: Path | str | None = None, points: int = 8,
          allowed_dirs: Iterable[Path] = ()):
     """The readings that would tell the tied explanations apart (``None`` when nothing is tied)."""
-    from .engine.compare import plan_for, run_compare
+    from .engine.loop.compare import plan_for, run_compare
 
     res = run_compare(Path(measurements), booth=booth, do_plan=False, history=False,
                       allowed_dirs=tuple(allowed_dirs))

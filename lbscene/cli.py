@@ -5,7 +5,7 @@ Each command lives in ``lbscene/commands/<name>.py`` and exposes
 ``register(app)``; commands import their heavy dependencies (colour, pxr, bpy,
 moderngl) inside the command function so ``lbscene --help`` stays fast.
 
-User mistakes raise :class:`~lbscene.engine.diagnostics.LbsceneUserError`; they
+User mistakes raise :class:`~lbscene.engine.files.diagnostics.LbsceneUserError`; they
 are printed as located diagnostics and the process exits with code 2.
 """
 
@@ -16,7 +16,7 @@ import sys
 
 import typer
 
-from lbscene.engine.diagnostics import LbsceneUserError
+from lbscene.engine.files.diagnostics import LbsceneUserError
 
 __all__ = ["app", "main", "COMMAND_MODULES", "print_diagnostics"]
 
@@ -92,11 +92,11 @@ def main(argv: list[str] | None = None) -> int:
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json = _wants_json(argv)
-    from lbscene.engine.outputs import INPUTS
+    from lbscene.engine.files.outputs import INPUTS
 
     INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)
     try:
-        from lbscene.engine.limits import check_environment
+        from lbscene.engine.files.limits import check_environment
 
         check_environment()
         # with standalone_mode=False click *returns* the code of typer.Exit instead of exiting
@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         if isinstance(exc, click.ClickException):
             if as_json:
-                from lbscene.engine.diagnostics import Diagnostic
+                from lbscene.engine.files.diagnostics import Diagnostic
 
                 _json_errors([Diagnostic("LB500", exc.format_message())])
                 return 2

@@ -16,7 +16,7 @@ this module puts it in the runtime's units and shapes.
 Examples
 --------
 >>> import numpy as np
->>> from lbscene.engine.spectral import DEFAULT_GRID
+>>> from lbscene.engine.spectra.bands import DEFAULT_GRID
 >>> w = radiance_xyz_weights(np.ones(471), DEFAULT_GRID)
 >>> w.shape
 (16, 3)
@@ -71,7 +71,7 @@ def colour_module_features() -> dict[str, bool]:
 def band_membership(first_centre_nm: float, width_nm: float, count: int) -> np.ndarray:
     """(count, 471) weights assigning each 1 nm sample to a band (halves on shared edges;
     light below the first / above the last edge goes to the first / last band)."""
-    from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as WL
+    from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
 
     lo = first_centre_nm - width_nm / 2
     edges = lo + width_nm * np.arange(count + 1)

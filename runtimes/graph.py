@@ -63,7 +63,7 @@ four RGBA32F images costs more than all the shading.
 
 Examples
 --------
->>> from lbscene.engine.compile import compile_booth          # doctest: +SKIP
+>>> from lbscene.engine.scene.compile import compile_booth          # doctest: +SKIP
 >>> g = build_render_graph(compile_booth("tests/data/minimal-booth"), "A")  # doctest: +SKIP
 >>> g["schedules"]["analysis"]                                # doctest: +SKIP
 ['surfaces', 'spectral_to_xyz', 'display', 'dither']
@@ -78,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-from lbscene.engine.forward_geometry import rotation_matrix
+from lbscene.engine.light.geometry import rotation_matrix
 
 __all__ = [
     "GRAPH_FORMAT",
@@ -235,11 +235,11 @@ def _profile_samples(ir, lamp) -> list[float]:
     theta = np.linspace(0.0, np.pi, PROFILE_SAMPLES)
     if "angular_profile" not in ir.effects:
         return [1.0] * PROFILE_SAMPLES
-    from lbscene.engine.effects.physics import effect_params
-    from lbscene.engine.effects.registry import get_effect
-    from lbscene.engine.profiles import GaussianShape, profile_shape
+    from lbscene.engine.light.effects.physics import effect_params
+    from lbscene.engine.light.effects.registry import get_effect
+    from lbscene.engine.spectra.profiles import GaussianShape, profile_shape
 
-    # as the effect reads its parameters (engine/effects/catalog.py): its lamp selection, the
+    # as the effect reads its parameters (engine/light/effects/catalog.py): its lamp selection, the
     # declared profile, else its σ for lamps that declare none
     p = effect_params(get_effect("angular_profile"), ir.effects["angular_profile"])
     if p.lamps is not None and lamp.id not in p.lamps:
@@ -267,8 +267,8 @@ def _emitters(ir, lighting: str) -> list[dict]:
     trans = np.ones(grid.count)
     diffuser = None
     if ir.diffuser is not None and "diffuser" in ir.effects:
-        from lbscene.engine.effects.physics import effect_params
-        from lbscene.engine.effects.registry import get_effect
+        from lbscene.engine.light.effects.physics import effect_params
+        from lbscene.engine.light.effects.registry import get_effect
 
         # the effect's parameters as the forward model reads them: transmittance_scale and the
         # diffuse_fraction override (the straight part is what the highlight sees)
@@ -282,7 +282,7 @@ def _emitters(ir, lighting: str) -> list[dict]:
                   if diffuser.scattering.get("type") == "lambertian" else 0.0)
         trans = trans * (1.0 - float(fd))
         if diffuser.scattering.get("type") == "roughness":
-            from lbscene.engine.effects.catalog import _slab_relative
+            from lbscene.engine.light.effects.catalog import _slab_relative
 
             # a rough slab's straight transmittance at normal incidence (the lobe and T(θ) are not
             # represented: diffuser_notes says so)
@@ -322,7 +322,7 @@ def diffuser_notes(ir) -> list[str]:
     d = ir.diffuser
     if d is None or "diffuser" not in ir.effects or d.scattering.get("type") != "roughness":
         return []
-    from lbscene.engine.effects.catalog import _rough_slab
+    from lbscene.engine.light.effects.catalog import _rough_slab
 
     r = float(d.scattering["roughness"])
     slab = _rough_slab(ir)
@@ -560,7 +560,7 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
     """The render graph (a JSON-ready dict) of ``ir`` under ``lighting``."""
     if lighting not in ir.lighting:
         raise KeyError(f"unknown lighting {lighting!r}")
-    from lbscene.engine.spectral import band_labels
+    from lbscene.engine.spectra.bands import band_labels
 
     grid = ir.grid
     materials = []
@@ -622,7 +622,7 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
                    "tessellation": "16 × 16 grid over the sample's size_mm"},
     }
     irradiance = {
-        "analytic": "lbscene.engine.forward.ForwardModel(ir, lighting).spectral_irradiance_bands at each "
+        "analytic": "lbscene.engine.light.forward.ForwardModel(ir, lighting).spectral_irradiance_bands at each "
                     "vertex (lamps with every enabled effect; for views that turn the luminaire with "
                     "the platform, evaluated in the platform's frame)",
         "baked": "bake products of this lighting: environment map at the sample per geometry "
@@ -677,7 +677,7 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
 
 def write_build_products(ir, lighting_name: str, folder: Path) -> list[Path]:
     """``lbscene build`` hook: write ``render_graph.json`` for one lighting configuration."""
-    from lbscene.engine.ir import canonical_json
+    from lbscene.engine.scene.ir import canonical_json
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

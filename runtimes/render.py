@@ -144,7 +144,7 @@ def write_png(path: Path, rgba8: np.ndarray, text: dict[str, str] | None = None)
 
     from PIL import Image, PngImagePlugin
 
-    from lbscene.engine.outputs import write_output
+    from lbscene.engine.files.outputs import write_output
 
     info = PngImagePlugin.PngInfo()
     for k, v in (text or {}).items():
@@ -156,7 +156,7 @@ def write_png(path: Path, rgba8: np.ndarray, text: dict[str, str] | None = None)
 
 def write_xyz(path: Path, xyz: np.ndarray) -> None:
     """Write float XYZ (H, W, 3) as ``.npy`` or ``.exr`` (channels X, Y, Z), atomically."""
-    from lbscene.engine.outputs import output_path
+    from lbscene.engine.files.outputs import output_path
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -234,7 +234,7 @@ class RenderJob:
 
 
 def _err(code, message, loc=None, **kw):
-    from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
+    from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError
 
     return LbsceneUserError(Diagnostic(code, message, loc, **kw))
 
@@ -246,10 +246,10 @@ def xyz_view_path(xyz: Path, view: str) -> Path:
 
 def _check_render_outputs(doc, base: Path, png: Path, png_from_cli: bool, xyz: Path | None,
                           xyz_from_cli: bool, views: list[str] | None, allowed_dirs) -> None:
-    """The output policy for a render (:mod:`lbscene.engine.outputs`): outputs named in the config
+    """The output policy for a render (:mod:`lbscene.engine.files.outputs`): outputs named in the config
     stay in its folder (unless ``--allow-path``); none replaces an input or a file lbscene did not
     write; every target is writable.  Checked before any rendering."""
-    from lbscene.engine.outputs import check_output_file
+    from lbscene.engine.files.outputs import check_output_file
 
     seen: dict[str, str] = {}
     items = [(Path(png), "--out" if png_from_cli else "output.png", None if png_from_cli else ("output", "png"))]
@@ -274,10 +274,10 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                         bake_dirs: list[Path] | None = None, allowed_dirs=(),
                         adaptation: str | None = None) -> RenderJob:
     """Load and check a render configuration; everything a user can get wrong raises
-    :class:`~lbscene.engine.diagnostics.LbsceneUserError` with a location.  Keyword arguments
+    :class:`~lbscene.engine.files.diagnostics.LbsceneUserError` with a location.  Keyword arguments
     other than ``bake_dirs`` and ``allowed_dirs`` override the configuration's fields."""
-    from lbscene.engine.compile import compile_booth, find_booth_file
-    from lbscene.engine.load import display_path, load_document
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
+    from lbscene.engine.files.load import display_path, load_document
     from lbscene.schemas.render_config import RenderConfig
     from lbscene.schemas.sample import Sample
 
@@ -354,7 +354,7 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
             where = ", ".join(display_path(p) for p in searched)
             bake_note = f"{reason} (looked in {where})"
             if mode == "baked":
-                from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
+                from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError
 
                 raise LbsceneUserError(Diagnostic(
                     "LB601", f"the configuration asks for baked lighting but {bake_note}",
@@ -449,7 +449,7 @@ def render_job(job: RenderJob, *, contact: bool = False, egl_device: int | None 
     import time
 
     from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     from .executor import GLUnavailableError
 

@@ -11,7 +11,7 @@ Coordinates: booth millimetres.  Geometry is placed per view on the CPU
 shader's model matrix is the identity.
 
 Irradiance at vertices (``diffuse='analytic'``) comes from the analytic forward
-model (:class:`lbscene.engine.forward.ForwardModel`: every enabled effect of
+model (:class:`lbscene.engine.light.forward.ForwardModel`: every enabled effect of
 the booth).  When the luminaire turns with the platform, the light transport
 is evaluated in the platform's frame (fixed parts transformed by the inverse
 rotation): exact for the direct light of platform-mounted lamps, approximate
@@ -75,7 +75,7 @@ class SampleSpec:
     @classmethod
     def from_document(cls, doc) -> "SampleSpec":
         """From a loaded :class:`lbscene.schemas.sample.Sample` document."""
-        from lbscene.engine.spectra import evaluate_spectrum
+        from lbscene.engine.spectra.evaluate import evaluate_spectrum
         from lbscene.schemas.booth import parse_geometry_name
 
         m = doc.model
@@ -222,7 +222,7 @@ def _forward_model(ir, lighting):
     key = (ir.content_hash, lighting)
     fm = _FORWARD_CACHE.get(key)
     if fm is None:
-        from lbscene.engine.forward import ForwardModel
+        from lbscene.engine.light.forward import ForwardModel
 
         if len(_FORWARD_CACHE) > 8:
             _FORWARD_CACHE.clear()
@@ -231,7 +231,7 @@ def _forward_model(ir, lighting):
 
 
 def _prediction_bands(fm, terms, n) -> np.ndarray:
-    from lbscene.engine.forward import Prediction
+    from lbscene.engine.light.forward import Prediction
 
     return Prediction(fm.groups, list(terms), n, fm.ir.grid).bands()
 
@@ -623,7 +623,7 @@ class SceneBuilder:
             illum = (illum - o) @ R.T + o
 
         # exposure and display
-        from lbscene.engine.spectra import cmfs_1nm
+        from lbscene.engine.spectra.evaluate import cmfs_1nm
 
         # a perfect white diffuser at the sample: XYZ (cd/m²) of the lighting's white
         white_xyz = 683.0 / np.pi * (e_1nm @ cmfs_1nm())

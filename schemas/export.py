@@ -19,7 +19,7 @@ JSON_DIR = Path(__file__).resolve().parent / "json"
 
 
 def _effects_schema() -> dict:
-    from lbscene.engine.effects.registry import available_effects
+    from lbscene.engine.light.effects.registry import available_effects
 
     props = {}
     for eid, eff in available_effects().items():
@@ -60,7 +60,7 @@ def render_all() -> dict[str, str]:
 
 
 def main() -> int:
-    from lbscene.engine.atomic import write_atomic
+    from lbscene.engine.files.atomic import write_atomic
 
     JSON_DIR.mkdir(exist_ok=True)
     for name, text in render_all().items():

@@ -3,7 +3,7 @@ Spectrum specifications: how a file says "this spectral distribution".
 
 Every spectral quantity in a booth, sample, filter or measurement file is one
 of these ``type:``-discriminated nodes.  They are turned into numbers by
-:func:`lbscene.engine.spectra.evaluate_spectrum` (1 nm reference sampling, then
+:func:`lbscene.engine.spectra.evaluate.evaluate_spectrum` (1 nm reference sampling, then
 band integration).
 
 Examples (YAML)::

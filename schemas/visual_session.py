@@ -4,7 +4,7 @@ against the physical sample in the booth, case by case.
 
 A case is one sample × viewing geometry × lighting; every observer sees every case
 ``repeats`` times, in a randomised, balanced order (see
-:func:`lbscene.engine.visual_protocol.plan_trials`), and answers on a grey scale
+:func:`lbscene.engine.visual.protocol.plan_trials`), and answers on a grey scale
 (ISO 105-A02 style, 5 = no visible difference) or with an estimated ΔE.  This is the
 protocol of "Visual validation of the appearance of chromatic objects rendered from
 spectrophotometric measurements" (16 observers, six geometries of the byko-spectra

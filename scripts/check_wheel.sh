@@ -41,8 +41,8 @@ site = Path(lbscene.__file__).resolve().parents[1]
 assert "site-packages" in site.parts, f"lbscene imported from {site}, not the installed wheel"
 print("lbscene", lbscene.__version__, "from", site)
 PY
-BOOTH=$("$WORK/venv/bin/python" -c "from lbscene.engine.shipped import shipped_booth; print(shipped_booth('xrite-spectralight-qc').parent)")
-DISPLAY_YAML=$("$WORK/venv/bin/python" -c "from lbscene.engine.shipped import shipped_displays; print(shipped_displays()['srgb-reference'])")
+BOOTH=$("$WORK/venv/bin/python" -c "from lbscene.engine.files.shipped import shipped_booth; print(shipped_booth('xrite-spectralight-qc').parent)")
+DISPLAY_YAML=$("$WORK/venv/bin/python" -c "from lbscene.engine.files.shipped import shipped_displays; print(shipped_displays()['srgb-reference'])")
 
 echo "== validate-config, build and render the shipped SpectraLight QC from $PWD"
 "$LB" validate-config "$BOOTH" "$DISPLAY_YAML"

@@ -255,7 +255,7 @@ def files_page() -> str:
 
 def named_spectra() -> list[str]:
     """The names a ``cie_illuminant`` / ``light_source`` spectrum accepts (colour-science's datasets)."""
-    from lbscene.engine.spectra import ILLUMINANT_ALIASES, known_names
+    from lbscene.engine.spectra.evaluate import ILLUMINANT_ALIASES, known_names
 
     out = ["## Named spectra {#named-spectra}", "",
            "`{type: cie_illuminant, name: …}` takes a name from colour-science's `SDS_ILLUMINANTS`; "
@@ -351,12 +351,12 @@ def cli_page() -> str:
 # --------------------------------------------------------------------------- diagnostics page
 
 def diagnostics_page() -> str:
-    from lbscene.engine.diagnostics import CODES
+    from lbscene.engine.files.diagnostics import CODES
 
     groups = {"0": "reading files", "1": "schema", "2": "references", "3": "semantic rules",
               "4": "measurement data", "5": "usage", "6": "build, bake and render"}
     out = ["# Diagnostic codes", "",
-           "Generated from `lbscene.engine.diagnostics.CODES`. Every user mistake is reported as "
+           "Generated from `lbscene.engine.files.diagnostics.CODES`. Every user mistake is reported as "
            "`file:line:col: error LBxxx: message (got …; expected …)` and the command exits with code 2.",
            ""]
     last = None

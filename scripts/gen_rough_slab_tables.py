@@ -1,6 +1,6 @@
-"""Regenerate the rough-slab tables that travel with lbscene (``engine/data/rough_slab``).
+"""Regenerate the rough-slab tables that travel with lbscene (``engine/light/data/rough_slab``).
 
-Run after any change to the slab's Monte Carlo (``lbscene.engine.rough_slab``): the shipped tables
+Run after any change to the slab's Monte Carlo (``lbscene.engine.light.rough_slab``): the shipped tables
 are used only when their recorded computation matches the current one, and
 ``tests/engine/test_rough_slab.py`` fails while they are stale.
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 
-from lbscene.engine.rough_slab import SHIPPED_PLATES, write_shipped_table
+from lbscene.engine.light.rough_slab import SHIPPED_PLATES, write_shipped_table
 
 
 def main() -> None:

@@ -1,4 +1,4 @@
-"""Regenerate engine/usd_schema/{plugInfo.json,generatedSchema.usda} from schema.usda.
+"""Regenerate engine/scene/usd_schema/{plugInfo.json,generatedSchema.usda} from schema.usda.
 
 Developer tool: runs usdGenSchema.py from the usd-core wheel (needs jinja2) and fills the
 @PLUG_INFO_*@ placeholders for a codeless, resource-only plugin.
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pxr
 
-here = Path(__file__).resolve().parents[1] / "engine" / "usd_schema"
+here = Path(__file__).resolve().parents[1] / "engine" / "scene" / "usd_schema"
 gen = Path(pxr.__file__).parent / "Usd" / "usdGenSchema.py"
 subprocess.run([sys.executable, str(gen), str(here / "schema.usda"), str(here)], check=True)
 text = (here / "plugInfo.json").read_text()

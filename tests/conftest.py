@@ -14,7 +14,7 @@ BOOTHS = REPO / "booths"
 
 @pytest.fixture(autouse=True, scope="session")
 def _private_geometry_cache(tmp_path_factory):
-    """The forward model's disk cache (engine.disk_cache) in a folder of this test session,
+    """The forward model's disk cache (engine.files.disk_cache) in a folder of this test session,
     never the user's ~/.cache."""
     import os
 

@@ -85,8 +85,8 @@ def test_no_machine_paths_in_committed_files():
 def test_unknown_light_source_hint_names_real_choices():
     from pydantic import TypeAdapter
 
-    from lbscene.engine.diagnostics import LbsceneUserError
-    from lbscene.engine.spectra import evaluate_spectrum
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.spectra.evaluate import evaluate_spectrum
     from lbscene.schemas.spectrum import SpectrumSpec
 
     spec = TypeAdapter(SpectrumSpec).validate_python({"type": "light_source", "name": "F32T8/TL84 (Triphosphor)"})

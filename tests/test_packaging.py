@@ -38,7 +38,8 @@ import pytest  # noqa: E402
 # folder in the repository → folder in the installed package, and the files the code opens there
 RUNTIME_FILES = {
     "schemas/json": ("lbscene/schemas/json", ["*.schema.json"]),
-    "engine/usd_schema": ("lbscene/engine/usd_schema", ["*.json", "*.usda"]),
+    "engine/scene/usd_schema": ("lbscene/engine/scene/usd_schema", ["*.json", "*.usda"]),
+    "engine/light/data/rough_slab": ("lbscene/engine/light/data/rough_slab", ["*.npz"]),
     "runtimes/shaders": ("lbscene/runtimes/shaders", ["*.glsl", "*.vert", "*.frag"]),
     "runtimes/data": ("lbscene/runtimes/data", ["*.json"]),
     "booths": ("lbscene/booths", ["*/booth.yaml", "*/spectra/*.csv", "*/geometry/*"]),
@@ -113,8 +114,8 @@ def test_wheel_metadata_spdx_license_urls_classifiers(dists):
 
 
 def test_shipped_booth_by_name():
-    from lbscene.engine.compile import find_booth_file
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.scene.compile import find_booth_file
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     assert find_booth_file("xrite-spectralight-qc") == REPO / "booths" / "xrite-spectralight-qc" / "booth.yaml"
     with pytest.raises(LbsceneUserError) as exc:

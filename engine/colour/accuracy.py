@@ -37,8 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outputs import output_path
-from ..spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, to_reference
+from lbscene.engine.files.outputs import output_path
+from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, to_reference
 from .band_weighting import (band_xyz_weights, cmfs_1nm, illuminant_bands, project_reflectance,
                              reference_xyz)
 
@@ -120,11 +120,11 @@ def cie_lighting_spds() -> dict[str, np.ndarray]:
 def booth_lighting_spds(booth_path) -> dict[str, np.ndarray]:
     """``"<booth name>: <configuration>"`` → 1 nm irradiance at the sample position.
 
-    Uses :func:`lbscene.engine.compile.compile_booth` and
+    Uses :func:`lbscene.engine.scene.compile.compile_booth` and
     :meth:`SceneIR.lighting_spd_1nm` (lamps, their filters when modelled, at the
     sample).  Configurations that put no light on the sample are left out.
     """
-    from ..compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     ir = compile_booth(booth_path)
     out = {}

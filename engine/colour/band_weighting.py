@@ -1,7 +1,7 @@
 r"""
 Lighting-dependent band weighting: 16 bands that reproduce 1 nm colorimetry.
 
-The renderer carries every spectrum as :class:`~lbscene.engine.spectral.BandGrid`
+The renderer carries every spectrum as :class:`~lbscene.engine.spectra.bands.BandGrid`
 band values (16 bands of 20 nm, edges 390–710 nm).  Box averages of illuminant,
 reflectance and colour-matching functions lose up to ~2 ΔE00 under spiky
 fluorescent lamps, and even weights that integrate illuminant × CMF at 1 nm
@@ -28,7 +28,7 @@ What the renderer carries, and how it must combine it
 For one lighting configuration with 1 nm irradiance ``S`` at the sample:
 
 ``E_b`` — the 16 **illuminant band values**: band means of ``S`` (exactly
-    ``grid.integrate(S)``, i.e. what :class:`~lbscene.engine.ir.IRSpectrum`
+    ``grid.integrate(S)``, i.e. what :class:`~lbscene.engine.scene.ir.IRSpectrum`
     ``.bands`` holds for a lamp spectrum).  Unit of ``S``.
 ``r_b`` — the 16 **band reflectances** of each surface from
     :func:`project_reflectance` ``(R, S)`` (what the IR carries as
@@ -81,7 +81,7 @@ compiler does (:meth:`SceneIR.lighting_spd_1nm` includes modelled filters).
 Examples
 --------
 >>> import numpy as np
->>> from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as wl
+>>> from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as wl
 >>> light = np.interp(wl, [360, 830], [0.5, 1.5])          # a tilted light
 >>> refl = 0.2 + 0.6 / (1 + np.exp(-(wl - 580) / 15))       # an orange-ish edge
 >>> r = project_reflectance(refl, light)
@@ -100,7 +100,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid
+from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid
 
 __all__ = [
     "DEFAULT_GRID",
@@ -124,7 +124,7 @@ _N_REF = REFERENCE_WAVELENGTHS_NM.size
 
 def cmfs_1nm() -> np.ndarray:
     """CIE 1931 2° colour-matching functions on the 1 nm reference grid, shape (471, 3)."""
-    from ..spectra import cmfs_1nm as _cmfs
+    from lbscene.engine.spectra.evaluate import cmfs_1nm as _cmfs
 
     return _cmfs()
 
@@ -241,7 +241,7 @@ def project_reflectance(reflectance_1nm, illuminant_1nm, grid: BandGrid = DEFAUL
     ----------
     reflectance_1nm
         Reflectance (or transmittance) factors on
-        :data:`~lbscene.engine.spectral.REFERENCE_WAVELENGTHS_NM`, shape (..., 471).
+        :data:`~lbscene.engine.spectra.bands.REFERENCE_WAVELENGTHS_NM`, shape (..., 471).
     illuminant_1nm
         Relative spectral irradiance of the light reaching the surface, shape (471,).
     grid

@@ -219,7 +219,7 @@ class DisplayModel:
                  display_name: str = "<display>"):
         import colour
 
-        from ..spectra import cmfs_1nm, evaluate_spectrum
+        from lbscene.engine.spectra.evaluate import cmfs_1nm, evaluate_spectrum
 
         if mapping not in GAMUT_MAPPINGS:
             raise ValueError(f"mapping must be one of {GAMUT_MAPPINGS}")
@@ -246,7 +246,7 @@ class DisplayModel:
                                     display=f"{display_name}: ambient.spd")
             xyz = spd @ cmfs_1nm()
             if not xyz[1] > 0:
-                from ..diagnostics import LbsceneUserError
+                from lbscene.engine.files.diagnostics import LbsceneUserError
 
                 raise LbsceneUserError.single("LB104", "ambient spectrum has no visible light",
                                               display_name, expected="a spectrum with Y > 0")
@@ -455,7 +455,7 @@ def load_display(path, *, mapping: Literal["chroma", "clip"] = "chroma") -> Disp
     """Load a display YAML file (located diagnostics on errors) and build its model."""
     from lbscene.schemas.display import Display
 
-    from ..load import load_document
+    from lbscene.engine.files.load import load_document
 
     doc = load_document(Path(path), Display)
     return DisplayModel(doc.model, doc.resolve, mapping=mapping, display_name=doc.file)

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lbscene.engine.compile import compile_booth, find_booth_file
-from lbscene.engine.forward_synthetic import synthesize
+from lbscene.engine.scene.compile import compile_booth, find_booth_file
+from lbscene.engine.truth.synthetic import synthesize
 
 HERE = Path(__file__).resolve().parent
 BOOTH = HERE.parents[1] / "booths" / "xrite-spectralight-qc"

@@ -19,7 +19,7 @@ class Mapping(str, Enum):
 
 def _repo_dir(name: str) -> Path:
     """``./<name>`` when it exists, else the shipped folder of that name (checkout or wheel)."""
-    from lbscene.engine.shipped import data_dir
+    from lbscene.engine.files.shipped import data_dir
 
     here = Path.cwd() / name
     if here.is_dir():
@@ -119,12 +119,12 @@ def register(app: typer.Typer) -> None:
             plot_per_patch,
         )
         from lbscene.engine.colour.display_model import load_display
-        from lbscene.engine.diagnostics import LbsceneUserError
+        from lbscene.engine.files.diagnostics import LbsceneUserError
 
         if plot is not None and plot.suffix.lower() != ".png":
             raise LbsceneUserError.single("LB500", "--plot must name a .png file", str(plot),
                                           value=str(plot), expected="a path ending in .png")
-        from lbscene.engine.outputs import check_outputs
+        from lbscene.engine.files.outputs import check_outputs
 
         check_outputs([(plot, "--plot")], inputs=[*(booth or ()), *(display or ())])
         booths = list(booth) if booth else default_booths()

@@ -45,12 +45,12 @@ class CrossMode(str, Enum):
 
 def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
     """(IR, build dir, from a build folder?) for a build folder or a booth."""
-    from lbscene.engine.diagnostics import LbsceneUserError
-    from lbscene.engine.ir import SceneIR
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.scene.ir import SceneIR
 
     if target.is_dir() and (target / "scene.ir.json").is_file():
         try:
-            from lbscene.engine.yamlio import read_text_bounded
+            from lbscene.engine.files.yamlio import read_text_bounded
 
             ir = SceneIR.model_validate_json(read_text_bounded(target / "scene.ir.json",
                                                                str(target / "scene.ir.json"), 256 * 1024 * 1024))
@@ -59,7 +59,7 @@ def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
                                           str(target / "scene.ir.json"),
                                           expected="a build folder written by `lbscene build`") from None
         return ir, target, True
-    from lbscene.engine.compile import compile_booth, find_booth_file
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
 
     booth_file = find_booth_file(target)
     ir = compile_booth(booth_file, allowed_dirs=allowed_dirs)
@@ -67,7 +67,7 @@ def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
 
 
 def _lighting_names(ir, target: Path, lighting: Optional[str]) -> list[str]:
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     names = list(ir.lighting)
     if lighting is None:
@@ -138,7 +138,7 @@ def register(app: typer.Typer) -> None:
         ir, build_dir, jobs = _load_targets(target, lighting, quality.value, samples,
                                             tuple(allow_path or ()))
         root = out or (build_dir / "bake")
-        from lbscene.engine.outputs import check_outputs
+        from lbscene.engine.files.outputs import check_outputs
 
         check_outputs([], inputs=[target], dirs=[(root / name, "--out" if out else "bake folder")
                                                  for name, _ in jobs])

@@ -27,8 +27,8 @@ def register(app: typer.Typer) -> None:
         from rich.progress import SpinnerColumn, TextColumn, TimeElapsedColumn
         from rich.table import Table
 
-        from lbscene.engine.build import build_booth
-        from lbscene.engine.compile import find_booth_file
+        from lbscene.engine.scene.build import build_booth
+        from lbscene.engine.scene.compile import find_booth_file
 
         booth_file = find_booth_file(booth)
         out_dir = out or Path("build") / booth_file.resolve().parent.name

@@ -159,9 +159,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compare a booth model with measurements: errors, fit, missing effect, plan, history."""
 
-        from lbscene.engine.compare import run_compare
+        from lbscene.engine.loop.compare import run_compare
 
-        from lbscene.engine.outputs import check_outputs
+        from lbscene.engine.files.outputs import check_outputs
 
         check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[measurements, booth])
         from lbscene.commands.console import err_console, out_console
@@ -173,7 +173,7 @@ def register(app: typer.Typer) -> None:
                               allowed_dirs=tuple(allow_path or ()), progress=cb,
                               keep_outliers=keep_outliers)
         if report is not None:
-            from lbscene.engine.report import write_report
+            from lbscene.engine.loop.report import write_report
 
             write_report(res, report)
         if format is Format.json or json_out is not None:
@@ -182,7 +182,7 @@ def register(app: typer.Typer) -> None:
                 out["report"] = str(report)
             text = json.dumps(out, indent=2, ensure_ascii=False)
             if json_out is not None:
-                from lbscene.engine.outputs import write_output
+                from lbscene.engine.files.outputs import write_output
 
                 write_output(json_out, text + "\n", option="--json-out")
         if format is Format.json:

@@ -15,7 +15,7 @@ def register(app: typer.Typer) -> None:
         """List the effects a booth's `effects:` section can enable (built-ins and plugins)."""
         from rich.table import Table
 
-        from lbscene.engine.effects.registry import available_effects
+        from lbscene.engine.light.effects.registry import available_effects
 
         rows = []
         for eid, cls in available_effects().items():

@@ -21,11 +21,11 @@ def register(app: typer.Typer) -> None:
         """Print the compare history of a measurement set (and plot it with --plot)."""
         from rich.table import Table
 
-        from lbscene.engine.history import plot_history, read_history
+        from lbscene.engine.loop.history import plot_history, read_history
 
-        from lbscene.engine.outputs import check_outputs
+        from lbscene.engine.files.outputs import check_outputs
 
-        from lbscene.engine.yamlio import read_bytes_bounded
+        from lbscene.engine.files.yamlio import read_bytes_bounded
 
         # a regular, readable file (a FIFO, a device or a folder is refused, not "no history")
         read_bytes_bounded(measurements, str(measurements), 4 * 1024 * 1024, is_input=False)
@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
         check_outputs([(plot, "--plot")], inputs=[measurements, hp if hp.exists() else None])
         entries = read_history(hp)
         if plot is not None and entries:
-            from lbscene.engine.outputs import output_path
+            from lbscene.engine.files.outputs import output_path
 
             fig = plot_history(entries, title=f"history of {measurements.name}")
             with output_path(plot, suffix=".png", option="--plot") as tmp:

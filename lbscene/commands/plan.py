@@ -30,9 +30,9 @@ def register(app: typer.Typer) -> None:
         from rich.table import Table
 
         from lbscene.commands.compare import diagnosis_progress
-        from lbscene.engine.compare import plan_for, run_compare
+        from lbscene.engine.loop.compare import plan_for, run_compare
 
-        from lbscene.engine.outputs import check_outputs
+        from lbscene.engine.files.outputs import check_outputs
 
         check_outputs([(out, "--out")], inputs=[measurements, booth])
         from lbscene.commands.console import err_console, out_console
@@ -44,7 +44,7 @@ def register(app: typer.Typer) -> None:
                               allowed_dirs=tuple(allow_path or ()), progress=cb)
         p = plan_for(res, max_points=points)
         if out is not None and p is not None:
-            from lbscene.engine.outputs import write_output
+            from lbscene.engine.files.outputs import write_output
 
             write_output(out, p.csv_template(), option="--out")
         if format is Format.json:

@@ -27,14 +27,14 @@ class Adaptation(str, Enum):
 
 
 def _usage_error(message: str, value: str, expected: str):
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     return LbsceneUserError.single("LB500", message, value=value, expected=expected)
 
 
 def _run_bake(job, console) -> None:
     """Build the booth and bake the configuration's lighting (separate processes)."""
-    from lbscene.engine.compile import find_booth_file
+    from lbscene.engine.scene.compile import find_booth_file
 
     booth_file = find_booth_file(Path(job["booth"]))
     build_dir = Path("build") / booth_file.resolve().parent.name
@@ -43,7 +43,7 @@ def _run_bake(job, console) -> None:
         console.print(f"[bold]running[/bold] {' '.join(cmd[2:])}")
         rc = subprocess.call(cmd)
         if rc != 0:
-            from lbscene.engine.diagnostics import LbsceneUserError
+            from lbscene.engine.files.diagnostics import LbsceneUserError
 
             raise LbsceneUserError.single("LB600", f"`{' '.join(cmd[2:])}` failed (exit {rc})",
                                           expected="a successful bake")
@@ -83,8 +83,8 @@ def register(app: typer.Typer) -> None:
         )
 
         from lbscene.engine.colour.adaptation import ADAPTATION_DESCRIPTIONS
-        from lbscene.engine.diagnostics import LbsceneUserError
-        from lbscene.engine.load import display_path
+        from lbscene.engine.files.diagnostics import LbsceneUserError
+        from lbscene.engine.files.load import display_path
         from lbscene.runtimes.render import parse_size, prepare_from_config, render_job
 
         from lbscene.commands.console import err_console, out_console, progress
@@ -126,7 +126,7 @@ def register(app: typer.Typer) -> None:
                 raise
             import ruamel.yaml  # the config names booth and lighting; read them without validating twice
 
-            from lbscene.engine.yamlio import read_text_bounded
+            from lbscene.engine.files.yamlio import read_text_bounded
 
             raw = ruamel.yaml.YAML(typ="safe").load(read_text_bounded(Path(config), str(config),
                                                                       4 * 1024 * 1024))

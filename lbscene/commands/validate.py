@@ -24,8 +24,8 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 clean, 1 warnings with --strict, 2 errors.
         """
-        from lbscene.engine.diagnostics import Severity
-        from lbscene.engine.validate import validate_paths
+        from lbscene.engine.files.diagnostics import Severity
+        from lbscene.engine.scene.validate import validate_paths
 
         report = validate_paths(paths, allowed_dirs=tuple(allow_path or ()))
         if format is Format.json:

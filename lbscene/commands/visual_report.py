@@ -25,10 +25,10 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Mean score per case, intra-/inter-observer STRESS and STRESS against the model's ΔE00."""
-        from lbscene.engine.load import display_path
-        from lbscene.engine.outputs import check_outputs, write_output
-        from lbscene.engine.visual_protocol import load_session, read_results
-        from lbscene.engine.visual_report import analyse, read_model_delta_e, render_html
+        from lbscene.engine.files.load import display_path
+        from lbscene.engine.files.outputs import check_outputs, write_output
+        from lbscene.engine.visual.protocol import load_session, read_results
+        from lbscene.engine.visual.report import analyse, read_model_delta_e, render_html
 
         check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[*results, session, model_de])
         ses = load_session(session, tuple(allow_path or ()))

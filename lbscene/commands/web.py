@@ -17,7 +17,7 @@ DEFAULT_MAX_MB = 256
 
 
 def _err(code, message, value=None, expected=None, hint=None, loc=None):
-    from lbscene.engine.diagnostics import Diagnostic, LbsceneUserError
+    from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError
 
     return LbsceneUserError(Diagnostic(code, message, loc, value=value, expected=expected, hint=hint))
 
@@ -32,7 +32,7 @@ def _grey_sample():
 
 
 def _load_sample(path: Path, allowed_dirs):
-    from lbscene.engine.load import load_document
+    from lbscene.engine.files.load import load_document
     from lbscene.runtimes.scene import SampleSpec
     from lbscene.schemas.sample import Sample
 
@@ -54,13 +54,13 @@ def _load_display(text: str):
 def gather_inputs(source: Path, *, lightings=(), samples=(), displays=(), size=None, session=None,
                   allowed_dirs=()):
     """Resolve the command's arguments into :class:`~lbscene.runtimes.web.export.WebExportInputs`."""
-    from lbscene.engine.compile import compile_booth, find_booth_file
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
     from lbscene.runtimes.render import prepare_from_config
     from lbscene.runtimes.web.export import WebExportInputs
 
     ses = None
     if session is not None:
-        from lbscene.engine.visual_protocol import load_session
+        from lbscene.engine.visual.protocol import load_session
 
         ses = load_session(session, allowed_dirs)
     if source is None:
@@ -141,7 +141,7 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Export a self-contained WebGL2 viewer of the booth (same render graph and shaders as render)."""
-        from lbscene.engine.load import display_path
+        from lbscene.engine.files.load import display_path
         from lbscene.runtimes.render import parse_size
         from lbscene.runtimes.web.export import build_export, is_web_export, write_export
 
@@ -154,7 +154,7 @@ def register(app: typer.Typer) -> None:
         if out.exists() and out.is_dir() and any(out.iterdir()) and not is_web_export(out):
             raise _err("LB700", f"--out {display_path(out)} exists and is not a web export", value=str(out),
                        expected="a new folder, or one an earlier export-web wrote (it is replaced whole)")
-        from lbscene.engine.outputs import check_output_dir, check_outputs
+        from lbscene.engine.files.outputs import check_output_dir, check_outputs
 
         check_outputs([], inputs=[source, session])
         check_output_dir(out, option="--out", owned=is_web_export)

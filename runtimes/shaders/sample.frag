@@ -187,7 +187,7 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
             a = e1.xyz * hl;
             s = s / sl * hw;
             // Lambertian cylinder: I = I_ref·sin θ over a projected area 2rℓ·sin θ, so its
-            // radiance is I_ref / 2rℓ in every direction (engine/emitters.py)
+            // radiance is I_ref / 2rℓ in every direction (engine/light/emitters.py)
             area_mm2 = 4.0 * hl * hw;
         } else if (kind == 2) {               // panel, emitting toward aim
             float ca = dot(w, e2.xyz);

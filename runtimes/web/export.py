@@ -21,7 +21,7 @@ works from ``file://``)::
     viewer.js               UI, camera, test mode, results export
     lbscene-data.js         ``window.LBSCENE_DATA = {...}``: manifest + base64 blobs
     model-delta-e00.csv     with a session: the model's ΔE00 per case
-                            (:mod:`lbscene.engine.visual_model`), for ``visual-report --model-de``
+                            (:mod:`lbscene.engine.visual.model`), for ``visual-report --model-de``
 
 Blobs are content-addressed (sha256), so data shared by views, samples or displays
 (booth meshes under fixed lamps, the LTC tables) are stored once.
@@ -142,8 +142,8 @@ def _display_path(display) -> Path | None:
 
 
 def _model_case(lighting, view_spec, sample, display, vi, white_fraction) -> dict:
-    """The model's ΔE00 of a case (:mod:`lbscene.engine.visual_model`) on one display."""
-    from lbscene.engine.visual_model import case_delta_e00, reflectance_at
+    """The model's ΔE00 of a case (:mod:`lbscene.engine.visual.model`) on one display."""
+    from lbscene.engine.visual.model import case_delta_e00, reflectance_at
 
     asp = float(view_spec["realised"]["aspecular_deg"])
     de = case_delta_e00(vi.sample_irradiance_1nm, reflectance_at(sample, asp), display,
@@ -270,7 +270,7 @@ def is_web_export(folder: Path) -> bool:
 
 def write_export(manifest: dict, out_dir: Path) -> list[Path]:
     """Write the viewer folder atomically (assembled in a sibling, then moved into place)."""
-    from lbscene.engine.atomic import atomic_replace_dir, temporary_dir_for
+    from lbscene.engine.files.atomic import atomic_replace_dir, temporary_dir_for
 
     out_dir = Path(out_dir)
     tmp = temporary_dir_for(out_dir)

@@ -93,7 +93,7 @@ effects:
 
 @pytest.fixture(scope="module")
 def cavity_ir(tmp_path_factory):
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     folder = tmp_path_factory.mktemp("cavity-booth")
     (folder / "cavity.obj").write_text(CAVITY_OBJ)
@@ -109,7 +109,7 @@ def _within(check, tol_percent):
 
 def test_direct_light_agrees_with_the_model_on_the_minimal_booth():
     """A point lamp over a grey box: inverse-square cosine law in both engines."""
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     ir = compile_booth(MINIMAL / "booth.yaml")
     check = cross_check(ir, "A", mode="direct", points=POINTS, samples=16)
@@ -125,7 +125,7 @@ def test_direct_light_agrees_with_the_model_on_the_minimal_booth():
 def test_white_cavity_lit_from_inside_agrees_with_the_model(cavity_ir):
     """~35 s: direct light and inter-reflection in the cavity booth, Cycles vs the model."""
     from lbscene.bakers.products import band_photopic_weights
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.light.forward import ForwardModel
 
     direct = cross_check(cavity_ir, "D65", mode="direct", points=POINTS, samples=512)
     d, limit = _within(direct, 2.0)
@@ -153,8 +153,8 @@ def test_a_closed_black_mesh_around_the_lamp_leaves_no_light_to_reflect(tmp_path
     (grey, 50 %) surfaces have nothing to inter-reflect; the radiosity must see the mesh block
     the lamp's light (before meshes took part, the walls were lit straight through it).
     The mesh's own inside, lit by the lamp, reflects nothing (ρ = 0)."""
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.light.forward import ForwardModel
 
     obj = "\n".join(f"v {x} {y} {z}" for x in (-50, 50) for y in (-50, 50) for z in (-50, 50))
     # the 6 faces of the cube (vertex k = 4·[x>0] + 2·[y>0] + [z>0] + 1), wound outward
@@ -210,7 +210,7 @@ def test_shipped_booths_agree_with_cycles_within_the_bake_noise(folder, lighting
     the tube legs it had let through the BYK's cavity (34 % high) and the aperture plate's
     shadow it counted twice there (3 % low) each failed this."""
     from lbscene.bakers.crosscheck import cross_check_all
-    from lbscene.engine.compile import compile_booth, find_booth_file
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
 
     ir = compile_booth(find_booth_file(SHIPPED / folder))
     checks = cross_check_all(ir, lighting, quality="final")

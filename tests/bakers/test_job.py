@@ -9,8 +9,8 @@ import pytest
 from lbscene.bakers.job import (JOB_VERSION, QUALITY_PRESETS, BakeJob, IrradiancePointsProduct,
                                 JobMaterial, JobMesh, MeasurementPoint, PointEmitters, RigidTransform,
                                 load_job, save_job)
-from lbscene.engine.diagnostics import LbsceneUserError
-from lbscene.engine.spectral import band_labels
+from lbscene.engine.files.diagnostics import LbsceneUserError
+from lbscene.engine.spectra.bands import band_labels
 
 
 def tiny(**kw) -> BakeJob:

@@ -14,7 +14,7 @@ from closed_forms import cylinder_quadrature_lx, mirror_image_visible
 from lbscene.bakers.crosscheck import bake_points
 from lbscene.bakers.from_ir import lighting_job
 from lbscene.bakers.job import AreaEmitter, IesProfile
-from lbscene.engine.compile import compile_booth
+from lbscene.engine.scene.compile import compile_booth
 
 H_MM = 700.0
 LV = 10000.0

@@ -11,7 +11,7 @@ import pytest
 
 from lbscene.bakers.from_ir import lighting_job
 from lbscene.bakers.job import AreaEmitter, PointEmitters
-from lbscene.engine.compile import compile_booth
+from lbscene.engine.scene.compile import compile_booth
 
 LAMPS = """\
   - id: T

@@ -10,7 +10,7 @@ from lbscene.bakers.products import (band_photopic_weights, cube_directions, cub
                                      environment_irradiance, equirect_directions, illuminance_lx,
                                      noise_summary, pixel_solid_angles, read_exr, read_product,
                                      write_exr)
-from lbscene.engine.spectral import band_labels
+from lbscene.engine.spectra.bands import band_labels
 
 
 def test_exr_round_trip_is_exact_float32(tmp_path):

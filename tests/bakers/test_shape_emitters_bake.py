@@ -11,7 +11,7 @@ from closed_forms import cylinder_quadrature_lx
 import pytest
 
 from lbscene.bakers.crosscheck import bake_points, cross_check
-from lbscene.engine.compile import compile_booth
+from lbscene.engine.scene.compile import compile_booth
 
 BOOTH = """\
 version: 1

@@ -50,7 +50,7 @@ def colour():
 
 
 def _booth(folder: Path):
-    from lbscene.engine.load import load_document
+    from lbscene.engine.files.load import load_document
     from lbscene.schemas.booth import Booth
 
     return load_document(folder / "booth.yaml", Booth).model

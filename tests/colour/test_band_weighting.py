@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.spectral import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM as WL, to_reference
+from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM as WL, to_reference
 
 REPO = Path(__file__).resolve().parents[2]
 TARGET_MEAN, TARGET_MAX = 0.1, 0.3
@@ -178,7 +178,7 @@ def _booth_files():
 @pytest.mark.parametrize("booth", _booth_files(), ids=lambda p: p.parent.name)
 def test_projected_meets_target_under_every_shipped_booth_lighting(booth, patches):
     from lbscene.engine.colour.accuracy import band_delta_e00, booth_lighting_spds
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     try:
         spds = booth_lighting_spds(booth)

@@ -54,7 +54,7 @@ def test_none_is_identity_and_bad_method():
 
 def test_display_model_grey_under_a_is_neutral():
     from lbscene.engine.colour.display_model import load_display
-    from lbscene.engine.shipped import shipped_displays
+    from lbscene.engine.files.shipped import shipped_displays
 
     model = load_display(shipped_displays()["srgb-reference"])
     grey = W_A / 100 * 0.2 * model.xyz_white_seen[1]

@@ -160,7 +160,7 @@ def test_glsl_uniforms_are_plain_and_consistent():
 
 
 def test_shipped_display_files_load_and_mark_estimates():
-    from lbscene.engine.load import load_document
+    from lbscene.engine.files.load import load_document
     from lbscene.schemas.display import Display
 
     for path in (SRGB, TABLET):
@@ -186,8 +186,8 @@ def test_display_file_errors_are_located(tmp_path, patch, code):
 
     from ruamel.yaml import YAML
 
-    from lbscene.engine.diagnostics import LbsceneUserError
-    from lbscene.engine.load import load_document
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.files.load import load_document
     from lbscene.schemas.display import Display
 
     safe = YAML(typ="safe")
@@ -205,7 +205,7 @@ def test_display_file_errors_are_located(tmp_path, patch, code):
 
 
 def test_missing_display_file_is_a_user_error(tmp_path):
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     with pytest.raises(LbsceneUserError) as exc:
         load(tmp_path / "nope.yaml")

@@ -8,8 +8,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.forward_geometry import (Ball, Capsule, Rectangle, bodies_block,
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.light.geometry import (Ball, Capsule, Rectangle, bodies_block,
                                              segment_segment_distance_mm, swept_pairs_near_body)
 
 
@@ -117,7 +117,7 @@ def test_a_tube_shades_the_ceiling_strip_it_lights_most(tmp_path):
     """Under a tube 80 mm below the ceiling, the floor cannot see the strip of ceiling right
     above it (the brightest), so the inter-reflected light there must drop: by about the
     share of the ceiling's first-order light within the tube's shadow."""
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.light.forward import ForwardModel
 
     P = np.array([[0.0, 0, 0], [0, 200, 0]])
     with_b = ForwardModel(_booth(tmp_path, 0.45, True), "L").illuminance_lx(P, meter=False)

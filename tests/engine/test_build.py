@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from lbscene.engine import build as build_mod
-from lbscene.engine.build import build_booth
+from lbscene.engine.scene import build as build_mod
+from lbscene.engine.scene.build import build_booth
 
 
 def _tree(d):
@@ -27,7 +27,7 @@ def test_interrupted_build_leaves_previous_output_intact(minimal_booth, tmp_path
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(build_mod, "PRODUCT_WRITERS", [("lbscene.engine.build", "_boom")])
+    monkeypatch.setattr(build_mod, "PRODUCT_WRITERS", [("lbscene.engine.scene.build", "_boom")])
     monkeypatch.setattr(build_mod, "_boom", boom, raising=False)
     (minimal_booth / "booth.yaml").write_text(
         (minimal_booth / "booth.yaml").read_text().replace("value_cd: 1000", "value_cd: 2000"))
@@ -53,8 +53,8 @@ def test_manifest_lists_every_file_with_its_hash(minimal_booth, tmp_path):
 def test_usd_stage_lights_and_spectral_attributes_read_back(minimal_booth, tmp_path):
     from pxr import Usd, UsdGeom, UsdLux
 
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.usd_stage import register_schema
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.scene.usd_stage import register_schema
 
     register_schema()
     out = tmp_path / "out"

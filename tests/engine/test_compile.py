@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.spectra import luminous_efficacy_sum
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.spectra.evaluate import luminous_efficacy_sum
 
 
 def _set_lamp(booth_dir, text_old, text_new):

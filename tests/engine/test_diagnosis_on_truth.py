@@ -4,7 +4,7 @@ The truth is Mitsuba 3, committed as data: the validation scenes' illuminance
 (``tests/data/validation/<scene>/truth-*.csv``) and the diagnosis scenes' illuminance and
 white-tile spectrum (``tests/data/diagnosis/<scene>/``, ``render_cases.py`` there).  Each case
 takes a scene, removes physics from its booth file — an effect switched off, or the hardware
-itself deleted (then only a hypothesis, :mod:`lbscene.engine.hypotheses`, can find it) — adds 1 %
+itself deleted (then only a hypothesis, :mod:`lbscene.engine.loop.hypotheses`, can find it) — adds 1 %
 seeded meter noise to the truth, and runs ``compare`` on the edited booth.
 
 Every case states the verdicts the data allow.  Where the verdict names something, pasting the
@@ -104,15 +104,15 @@ def _edit(text: str, remove: tuple[str, ...]) -> str:
 
 
 def _truth(case: Case):
-    from lbscene.engine.truth_validation import read_truth_csv
+    from lbscene.engine.truth.validation import read_truth_csv
 
     return read_truth_csv(case.folder / f"truth-{case.grid}.csv")
 
 
 def make_case(case: Case, tmp: Path) -> Path:
     """The user's booth (physics removed) and a measurement set from the truth; its path."""
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward_synthetic import write_illuminance_csv
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.synthetic import write_illuminance_csv
 
     booth = tmp / "booth"
     booth.mkdir(parents=True)
@@ -159,7 +159,7 @@ def run_case(case: Case, tmp: Path) -> dict:
     """Compare, apply the snippet, compare again: the row of the table."""
     import time
 
-    from lbscene.engine.compare import run_compare
+    from lbscene.engine.loop.compare import run_compare
 
     m = make_case(case, tmp)
     t0 = time.perf_counter()
@@ -207,10 +207,10 @@ def test_planned_readings_rendered_by_the_truth_narrow_a_tie(tmp_path):
     """Where the grid cannot tell (an aperture's level drop, lamp output known), the verdict is a
     tie that lists the truth; the readings ``plan`` proposes, rendered by Mitsuba from the true
     booth, narrow it and keep the truth in it."""
-    from lbscene.engine.compare import run_compare
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward_synthetic import write_illuminance_csv
-    from lbscene.engine.truth_mitsuba import MitsubaTruth
+    from lbscene.engine.loop.compare import run_compare
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.synthetic import write_illuminance_csv
+    from lbscene.engine.truth.mitsuba import MitsubaTruth
 
     case = next(c for c in CASES if c.id == "aperture-declared-known")
     m = make_case(case, tmp_path)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lbscene.engine import disk_cache
+from lbscene.engine.files import disk_cache
 
 
 @pytest.fixture
@@ -127,7 +127,7 @@ def test_an_entry_of_the_wrong_shape_or_with_nan_is_recomputed(cache, bad):
 
 @pytest.mark.parametrize("value", ["inf", "-1", "nan", "lots", "1e400"])
 def test_cache_size_bound_must_be_a_finite_size(cache, monkeypatch, value):
-    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.files.diagnostics import LbsceneUserError
 
     monkeypatch.setenv("LBSCENE_CACHE_MAX_MB", value)
     with pytest.raises(LbsceneUserError) as ei:

@@ -1,5 +1,5 @@
 """Every registered effect (built-ins and entry-point plugins) keeps to the declared hook
-interface of engine/effects/physics.py; registering anything else is an error."""
+interface of engine/light/effects/physics.py; registering anything else is an error."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import inspect
 
 import pytest
 
-from lbscene.engine.effects.physics import BACKENDS, HOOKS, EffectHooks, PhysicalEffect
-from lbscene.engine.effects.registry import Effect, available_effects, register_effect
+from lbscene.engine.light.effects.physics import BACKENDS, HOOKS, EffectHooks, PhysicalEffect
+from lbscene.engine.light.effects.registry import Effect, available_effects, register_effect
 
 
 @pytest.mark.parametrize("eid", sorted(available_effects()))

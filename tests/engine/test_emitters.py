@@ -13,9 +13,9 @@ import numpy as np
 from closed_forms import cylinder_quadrature_lx
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.forward import ForwardModel
-from lbscene.engine.forward_reference import ReferenceEngine
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.light.forward import ForwardModel
+from lbscene.engine.truth.reference import ReferenceEngine
 
 BOOTH = """\
 version: 1
@@ -290,8 +290,8 @@ profile: {type: ies, path: lamp.ies}""")
 
 
 def test_build_carries_the_ies_file(tmp_path):
-    from lbscene.engine.build import build_booth
-    from lbscene.engine.profiles import read_ies
+    from lbscene.engine.scene.build import build_booth
+    from lbscene.engine.spectra.profiles import read_ies
 
     d = booth(tmp_path, """
 type: point
@@ -315,8 +315,8 @@ profile: {type: ies, path: lamp.ies}""")
 def test_fewer_lamp_points_are_refined_near_the_tube(tmp_path, p, n):
     """The inter-reflection lights its patches with ``ForwardOptions(lamp_points=25)``; the
     near-field rule must still integrate the tube finely where a patch is close to it."""
-    from lbscene.engine.forward import ForwardOptions
-    from lbscene.engine.radiosity import TRANSPORT_LAMP_POINTS
+    from lbscene.engine.light.forward import ForwardOptions
+    from lbscene.engine.light.radiosity import TRANSPORT_LAMP_POINTS
 
     ir = compile_booth(booth(tmp_path, TUBE.format(z=700, l=590, r=13,
                                                    out="{type: luminance_cd_m2, value_cd_m2: 10000}")))

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.outputs import LEDGER_NAME
+from lbscene.engine.files.outputs import LEDGER_NAME
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.diagnostics import LbsceneUserError
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.files.diagnostics import LbsceneUserError
 
 OBJ_QUAD = """# a 1 x 2 quad in metres, in the xy plane
 v 0 0 0

@@ -5,7 +5,7 @@ of jittered lamp samples, per-ray occlusion, its own finer radiosity): a
 different computation from the forward model being fitted, so these tests
 cannot pass by symmetry.  ``LBSCENE_HIDDEN_EFFECT_TRUTH=mitsuba`` draws the
 truth of the effects Mitsuba can represent from the independent renderer
-instead (``engine/truth_mitsuba.py``); the others stay with the reference engine.  Readings get 1 % meter noise (fixed seed).  The
+instead (``engine/truth/mitsuba.py``); the others stay with the reference engine.  Readings get 1 % meter noise (fixed seed).  The
 booth file given to the tool lacks the effect; the fix is an edit of the
 booth YAML only — the diagnosis' own snippet — never code.
 
@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.compare import run_compare
-from lbscene.engine.forward_synthetic import synthesize
+from lbscene.engine.loop.compare import run_compare
+from lbscene.engine.truth.synthetic import synthesize
 
 BOOTH = Path(__file__).resolve().parents[1] / "data" / "hidden-effect-booth"
 NOISE_PERCENT = 1.0
@@ -55,7 +55,7 @@ TRUTHS = {
 
 
 #: where the synthetic truth comes from: 'reference' (the brute-force Monte Carlo engine) or 'mitsuba'
-#: (the independent renderer, engine/truth_mitsuba.py); with 'mitsuba', the hidden effects Mitsuba
+#: (the independent renderer, engine/truth/mitsuba.py); with 'mitsuba', the hidden effects Mitsuba
 #: cannot represent still come from 'reference'
 TRUTH_PROVIDER = os.environ.get("LBSCENE_HIDDEN_EFFECT_TRUTH", "reference")
 #: hidden effects (as set up here) that Mitsuba refuses: lamp profiles and overrides, end falloff,
@@ -67,8 +67,8 @@ def truth_engine_for(booth: Path, truth: str):
     """The engine the truth ``truth`` comes from (None: ``synthesize`` makes the reference one)."""
     if TRUTH_PROVIDER == "reference" or truth in MITSUBA_CANNOT:
         return None
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward_synthetic import truth_engine
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.synthetic import truth_engine
 
     # the booth's slot plates are declared per lamp; real plates block every lamp
     return truth_engine(compile_booth(booth), "FL", TRUTHS[truth], provider=TRUTH_PROVIDER,

@@ -7,7 +7,7 @@ import shutil
 from pathlib import Path
 
 from lbscene.cli import main
-from lbscene.engine.forward_synthetic import synthesize
+from lbscene.engine.truth.synthetic import synthesize
 
 BOOTH = Path(__file__).resolve().parents[1] / "data" / "hidden-effect-booth"
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.effects.catalog import shifted_spectrum_1nm
-from lbscene.engine.hypotheses import (HYPOTHESES, AperturePlateHypothesis, DiffuserPlateHypothesis,
+from lbscene.engine.light.effects.catalog import shifted_spectrum_1nm
+from lbscene.engine.loop.hypotheses import (HYPOTHESES, AperturePlateHypothesis, DiffuserPlateHypothesis,
                                        applicable_hypotheses, filter_basis)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -39,7 +39,7 @@ def test_spectrum_shift_moves_a_line_and_keeps_its_area():
 
 
 def test_hypotheses_apply_only_to_hardware_the_booth_lacks():
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     full = compile_booth(DATA / "hidden-effect-booth" / "booth.yaml")
     todo, skipped = applicable_hypotheses(full, "FL")
@@ -64,7 +64,7 @@ def _fake_fit(values, stderr=None):
                                "effect.aperture_occlusion.opening_scale_v": 1.3}),
 ])
 def test_plate_hypothesis_yaml_validates_and_compiles_to_the_fitted_hardware(H, values, tmp_path):
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     src = DATA / "validation" / "walls-05"
     ir = compile_booth(src / "booth.yaml")
@@ -95,8 +95,8 @@ def test_an_undeclared_diffusing_plate_is_among_the_explanations(tmp_path):
     the truth is the brute-force Monte Carlo reference engine (its own sampling and transport).
     With the output known, the A3 grid sees a level drop several shapes explain: the verdict
     must list the plate, and never a filter (a level is not a spectrum)."""
-    from lbscene.engine.compare import run_compare
-    from lbscene.engine.forward_synthetic import synthesize
+    from lbscene.engine.loop.compare import run_compare
+    from lbscene.engine.truth.synthetic import synthesize
 
     src = DATA / "validation" / "walls-45"
     full, user = tmp_path / "full", tmp_path / "user"

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.diagnostics import LbsceneUserError
-from lbscene.engine.spectra import evaluate_spectrum
-from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as WL
+from lbscene.engine.files.diagnostics import LbsceneUserError
+from lbscene.engine.spectra.evaluate import evaluate_spectrum
+from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
 from lbscene.schemas.spectrum import InstrumentFileSpectrum
 
 colour = pytest.importorskip("colour")

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.truth_validation import (GRIDS, booth_files_sha256, compare_with_truth, read_truth_csv,
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.truth.validation import (GRIDS, booth_files_sha256, compare_with_truth, read_truth_csv,
                                              validation_grid)
 
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "validation"
@@ -86,7 +86,7 @@ def test_truth_was_rendered_from_this_booth(scene, grid):
     ir = _ir(scene)
     # the truth included exactly the physics the booth enables, with its lighting
     # (parameters added to an effect since, at their defaults, change nothing)
-    from lbscene.engine.effects.registry import get_effect
+    from lbscene.engine.light.effects.registry import get_effect
 
     def norm(eff):
         return {k: get_effect(k).Params.model_validate(v or {}).model_dump(mode="json") for k, v in eff.items()}
@@ -135,7 +135,7 @@ def test_noise_removal_is_the_quadrature_difference():
 def test_the_truth_accepts_every_scene_as_declared():
     # MitsubaTruth refuses (LB603) what it cannot represent: every scene must be representable
     pytest.importorskip("mitsuba")
-    from lbscene.engine.truth_mitsuba import MitsubaTruth
+    from lbscene.engine.truth.mitsuba import MitsubaTruth
 
     for scene in RT.SCENES:
         MitsubaTruth(_ir(scene), RT.LIGHTING)

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.effects.catalog import ApertureOcclusionEffect, _occluder_rects
-from lbscene.engine.radiosity import interior_patches, occluder_patches
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.light.effects.catalog import ApertureOcclusionEffect, _occluder_rects
+from lbscene.engine.light.radiosity import interior_patches, occluder_patches
 
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "validation"
 

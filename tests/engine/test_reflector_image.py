@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from closed_forms import cylinder_quadrature_lx, mirror_image_visible
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.forward import ForwardModel
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.light.forward import ForwardModel
 
 H, LV, L, R = 700.0, 10000.0, 590.0, 13.0
 RM, DM, WM = 0.9, 35.0, 130.0
@@ -72,7 +72,7 @@ def test_the_lamp_hides_its_own_image_below_it(model):
 def test_the_reference_engine_hides_the_image_behind_the_lamp_too(model):
     # the Monte Carlo reference engine (truth for effects Mitsuba 3 does not render) samples the
     # image's surface and tests each path against the lamp's cylinder with its own ray code
-    from lbscene.engine.forward_reference import ReferenceEngine
+    from lbscene.engine.truth.reference import ReferenceEngine
 
     ir, _ = model
     ref = ReferenceEngine(ir, "M", {"reflector": {}}, samples_per_lamp=64000, seed=2)

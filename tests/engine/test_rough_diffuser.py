@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.effects import catalog
-from lbscene.engine.forward import ForwardModel
-from lbscene.engine.rough_slab import RoughSlab
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.light.effects import catalog
+from lbscene.engine.light.forward import ForwardModel
+from lbscene.engine.light.rough_slab import RoughSlab
 
 REPO = Path(__file__).resolve().parents[2]
 SCENE = REPO / "tests" / "data" / "validation" / "rough-diffuser-r030"
@@ -110,7 +110,7 @@ def test_the_directional_source_sends_light_on_along_its_incident_direction(ir):
     wide = _ir_with(ir, type="roughness", roughness=0.7)
     fm = ForwardModel(wide, "L", effects={"diffuser": {"rough_transport": "scattered", "cell_size_mm": 100}})
     src = fm.secondary_sources()[0]
-    from lbscene.engine.forward_geometry import quad_centroids
+    from lbscene.engine.light.geometry import quad_centroids
 
     c = quad_centroids(src.polys)
     k = int(np.argmin(np.linalg.norm(c[:, :2] - [0.0, -300.0], axis=1)))     # near the front edge

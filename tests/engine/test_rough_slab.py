@@ -1,4 +1,4 @@
-"""The rough dielectric slab (engine/rough_slab.py) against closed forms and an independent
+"""The rough dielectric slab (engine/light/rough_slab.py) against closed forms and an independent
 quadrature of Walter et al.'s microfacet BSDF."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lbscene.engine import rough_slab as rs
-from lbscene.engine.effects.physics import fresnel_slab_transmittance
+from lbscene.engine.light import rough_slab as rs
+from lbscene.engine.light.effects.physics import fresnel_slab_transmittance
 
 IOR = 1.49
 

@@ -18,8 +18,8 @@ def test_the_three_seed_booths_are_shipped():
 
 @pytest.mark.parametrize("booth", BOOTH_DIRS, ids=[p.name for p in BOOTH_DIRS])
 def test_booth_validates_clean(booth):
-    from lbscene.engine.diagnostics import Severity
-    from lbscene.engine.validate import validate_paths
+    from lbscene.engine.files.diagnostics import Severity
+    from lbscene.engine.scene.validate import validate_paths
 
     report = validate_paths([booth])
     problems = [d.format() for d in report.diagnostics if d.severity is not Severity.INFO]
@@ -30,8 +30,8 @@ def test_booth_validates_clean(booth):
 def test_booth_builds_every_lighting(booth, tmp_path):
     from pxr import Usd, UsdLux
 
-    from lbscene.engine.build import build_booth
-    from lbscene.engine.usd_stage import register_schema
+    from lbscene.engine.scene.build import build_booth
+    from lbscene.engine.scene.usd_stage import register_schema
 
     res = build_booth(booth, tmp_path / "out")
     assert res.lightings

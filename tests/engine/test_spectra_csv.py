@@ -2,9 +2,9 @@
 
 import pytest
 
-from lbscene.engine.diagnostics import LbsceneUserError
-from lbscene.engine.spectra import read_spectrum_csv
-from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM
+from lbscene.engine.files.diagnostics import LbsceneUserError
+from lbscene.engine.spectra.evaluate import read_spectrum_csv
+from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM
 
 
 def _csv(tmp_path, text):

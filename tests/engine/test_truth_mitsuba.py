@@ -16,12 +16,12 @@ import textwrap
 import numpy as np
 import pytest
 
-from lbscene.engine.compile import compile_booth
-from lbscene.engine.diagnostics import LbsceneUserError
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.files.diagnostics import LbsceneUserError
 
 pytest.importorskip("mitsuba")
 
-from lbscene.engine.truth_mitsuba import MitsubaTruth  # noqa: E402
+from lbscene.engine.truth.mitsuba import MitsubaTruth  # noqa: E402
 
 K_SIGMA = 4.0
 #: point lamp peak intensity of the test booths, cd
@@ -213,7 +213,7 @@ def _icosphere(level: int):
 def test_closed_sphere_radiosity_is_E_direct_over_1_minus_rho(tmp_path, rho):
     """Inside a closed sphere of uniform reflectance ρ with an isotropic point at its centre, every
     element sees every other with form factor dA/A, so E = E_direct/(1 − ρ) everywhere."""
-    from lbscene.engine.ir import IRSurface
+    from lbscene.engine.scene.ir import IRSurface
 
     R = 500.0
     ir = _booth(tmp_path, "- {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: constant, value: 1}, "
@@ -254,7 +254,7 @@ def test_a_non_isotropic_profile_is_refused(tmp_path):
 
 
 def test_mitsuba_is_a_registered_truth_provider_imported_lazily():
-    code = ("import sys, lbscene.engine.forward_reference as f; "
+    code = ("import sys, lbscene.engine.truth.reference as f; "
             "assert 'mitsuba' in f.TRUTH_PROVIDERS; assert 'mitsuba' not in sys.modules; print('ok')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.strip() == "ok", out.stderr

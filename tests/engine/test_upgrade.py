@@ -1,8 +1,8 @@
 """`version:` upgrade passes run before validation."""
 
 
-from lbscene.engine import load as load_mod
-from lbscene.engine.load import load_document
+from lbscene.engine.files import load as load_mod
+from lbscene.engine.files.load import load_document
 from lbscene.schemas import base
 
 

@@ -26,7 +26,7 @@ def _sd_1nm(sd):
 def test_neutral_grey_stays_neutral_under_any_lighting(light):
     import colour
 
-    from lbscene.engine.usd_stage import adapted_linear_srgb
+    from lbscene.engine.scene.usd_stage import adapted_linear_srgb
 
     spd = _sd_1nm(colour.SDS_ILLUMINANTS[light])
     assert adapted_linear_srgb(np.full(471, 0.18), spd) == pytest.approx((0.18, 0.18, 0.18), abs=1e-5)
@@ -38,7 +38,7 @@ def test_material_colour_under_d65_is_colour_sciences_linear_srgb():
     ``sd_to_XYZ`` → ``XYZ_to_sRGB`` (linear) of the ColorChecker patch."""
     import colour
 
-    from lbscene.engine.usd_stage import adapted_linear_srgb
+    from lbscene.engine.scene.usd_stage import adapted_linear_srgb
 
     d65 = colour.SDS_ILLUMINANTS["D65"]
     for name in ("dark skin", "blue sky", "moderate red"):
@@ -52,7 +52,7 @@ def test_material_colour_under_d65_is_colour_sciences_linear_srgb():
 
 
 def test_gaussian_profile_fitted_cosine_power():
-    from lbscene.engine.usd_stage import fit_cosine_power
+    from lbscene.engine.scene.usd_stage import fit_cosine_power
 
     # narrow beams: the small-angle closed form exp(−θ²/4σ²) ≈ cosⁿθ ⇔ n = 1/(2σ²)
     for sigma_deg in (3.0, 6.0):
@@ -70,8 +70,8 @@ def test_gaussian_profile_fitted_cosine_power():
 
 
 def test_ies_text_round_trip():
-    from lbscene.engine.profiles import read_ies
-    from lbscene.engine.usd_stage import ies_text
+    from lbscene.engine.spectra.profiles import read_ies
+    from lbscene.engine.scene.usd_stage import ies_text
 
     data = {"vertical_deg": [0, 30, 60, 90], "horizontal_deg": [0, 90, 180],
             "candela": [[100, 80, 40, 0], [100, 70, 30, 0], [100, 60, 20, 0]], "lumens_per_lamp": 500}
@@ -90,8 +90,8 @@ def test_ies_text_round_trip():
 
 @pytest.fixture(scope="module")
 def splqc_build(tmp_path_factory):
-    from lbscene.engine.build import build_booth
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.build import build_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     out = tmp_path_factory.mktemp("splqc") / "build"
     build_booth(SPLQC, out)
@@ -101,7 +101,7 @@ def splqc_build(tmp_path_factory):
 def test_per_lighting_stage_has_only_the_lamps_on(splqc_build):
     from pxr import Usd, UsdLux
 
-    from lbscene.engine.usd_stage import register_schema
+    from lbscene.engine.scene.usd_stage import register_schema
 
     out, ir = splqc_build
     register_schema()
@@ -136,7 +136,7 @@ def test_stage_of_all_lightings_has_a_lighting_variant_set(splqc_build):
 def test_materials_diffuser_and_shaping(splqc_build):
     from pxr import Usd, UsdGeom, UsdLux, UsdShade
 
-    from lbscene.engine.usd_stage import fit_cosine_power, luminous_factor, lighting_spectrum_1nm
+    from lbscene.engine.scene.usd_stage import fit_cosine_power, luminous_factor, lighting_spectrum_1nm
 
     out, ir = splqc_build
     stage = Usd.Stage.Open(str(out / "lighting" / "D65" / "scene.usda"))
@@ -163,7 +163,7 @@ def test_materials_diffuser_and_shaping(splqc_build):
 
 
 def test_validators_pass_and_can_fail(splqc_build, tmp_path):
-    from lbscene.engine.usd_stage import validate_stage
+    from lbscene.engine.scene.usd_stage import validate_stage
 
     out, _ = splqc_build
     assert validate_stage(out / "scene.usda") == []
@@ -176,9 +176,9 @@ def test_validators_pass_and_can_fail(splqc_build, tmp_path):
 def test_ies_file_copied_and_referenced_relatively(minimal_booth, tmp_path):
     from pxr import Sdf, Usd, UsdLux
 
-    from lbscene.engine.build import build_booth
-    from lbscene.engine.profiles import read_ies
-    from lbscene.engine.usd_stage import validate_stage
+    from lbscene.engine.scene.build import build_booth
+    from lbscene.engine.spectra.profiles import read_ies
+    from lbscene.engine.scene.usd_stage import validate_stage
 
     (minimal_booth / "bulb.ies").write_text(
         "IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 4 1 1 2 0 0 0\n1 1 0\n0 30 60 90\n0\n200 150 60 0\n")

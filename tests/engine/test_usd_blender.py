@@ -64,9 +64,9 @@ def lambertian_rectangle_lx(peak_cd: float, a_m: float, b_m: float, h_m: float) 
 
 def test_blender_imports_the_stage_and_cycles_sees_the_same_illuminance(tmp_path):
     pytest.importorskip("bpy")
-    from lbscene.engine.build import build_booth
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.scene.build import build_booth
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.light.forward import ForwardModel
 
     (tmp_path / "booth").mkdir()
     (tmp_path / "booth" / "booth.yaml").write_text(BOOTH)

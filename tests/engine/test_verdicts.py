@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.compare import plan_for, run_compare
-from lbscene.engine.diagnose import Verdict, _decide
-from lbscene.engine.forward_synthetic import synthesize
+from lbscene.engine.loop.compare import plan_for, run_compare
+from lbscene.engine.loop.diagnose import Verdict, _decide
+from lbscene.engine.truth.synthetic import synthesize
 
 BOOTH = Path(__file__).resolve().parents[1] / "data" / "hidden-effect-booth"
 
@@ -116,7 +116,7 @@ def test_confidence_of_an_identified_effect(booth, tmp_path):
 
 
 def test_plan_predictions_stay_within_the_physical_bound(booth, tmp_path):
-    from lbscene.engine.plan import illuminance_upper_bound_lx
+    from lbscene.engine.loop.plan import illuminance_upper_bound_lx
 
     m = synthesize(booth, tmp_path / "m", lighting="FL", truth_effects={"aperture_occlusion": {}},
                    noise_percent=1.0)

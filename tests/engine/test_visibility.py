@@ -8,7 +8,7 @@ import doctest
 import numpy as np
 import pytest
 
-from lbscene.engine import forward_geometry as fg
+from lbscene.engine.light import geometry as fg
 
 CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
@@ -119,7 +119,7 @@ def test_gather_visibility_of_a_half_hidden_patch():
     point set's resolution."""
     from types import SimpleNamespace
 
-    from lbscene.engine.radiosity import RadiosityTransport
+    from lbscene.engine.light.radiosity import RadiosityTransport
 
     quad = np.array([[[-50, -50, 1000], [50, -50, 1000], [50, 50, 1000], [-50, 50, 1000]]], float)
     # plate at z = 500: the left half of the patch projects to x ∈ [−25, 0]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lbscene.engine.compile import compile_booth
+from lbscene.engine.scene.compile import compile_booth
 from lbscene.runtimes.graph import _emitters
 
 DATA = Path(__file__).resolve().parents[1] / "data"

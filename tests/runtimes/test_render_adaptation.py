@@ -37,7 +37,7 @@ def a_booth(tmp_path_factory):
 
 
 def _grey_pixel(a_booth, ctx, adaptation):
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.colour_bridge import srgb_display
     from lbscene.runtimes.graph import build_render_graph
     from lbscene.runtimes.render import Renderer

@@ -244,7 +244,7 @@ def _example_configs():
 
 
 def test_example_render_configs_match_their_booths():
-    from lbscene.engine.load import load_document
+    from lbscene.engine.files.load import load_document
     from lbscene.schemas.booth import Booth
     from lbscene.schemas.render_config import RenderConfig
     from lbscene.schemas.sample import Sample

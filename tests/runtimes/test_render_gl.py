@@ -34,7 +34,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 @pytest.fixture(scope="module")
 def tube_ir():
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     return compile_booth(TUBE_BOOTH)
 
@@ -63,7 +63,7 @@ def _expected_xyz(ir, lighting, reflectance_1nm, point_mm, normal):
     """Absolute XYZ (Y in cd/m²) of a Lambertian reflectance at a point, and the XYZ of a
     perfect white diffuser there: colour-science at 1 nm on the forward model's irradiance."""
     import colour
-    from lbscene.engine.forward import ForwardModel
+    from lbscene.engine.light.forward import ForwardModel
 
     e = ForwardModel(ir, lighting).spectral_irradiance_1nm([point_mm], [normal])[0]   # W m⁻² nm⁻¹
     shape = colour.SpectralShape(360, 830, 1)
@@ -146,7 +146,7 @@ def test_centre_pixel_in_the_spectralight_qc(gl_ctx, lighting):
     booth's platform pivot), which lifts the sample centre 105 mm and moves it 43.5 mm forward:
     the expected point and normal are computed here from that pivot, independently of the
     runtime's placement code."""
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.graph import SAMPLE_LIFT_MM
     from lbscene.runtimes.scene import SampleSpec
     from scipy.spatial.transform import Rotation

@@ -15,7 +15,7 @@ TUBE_BOOTH = HERE / "data" / "tube-booth"
 
 @pytest.fixture(scope="module")
 def tube_ir():
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
 
     return compile_booth(TUBE_BOOTH)
 
@@ -108,7 +108,7 @@ def test_materials_use_the_lighting_projection(tube_ir, graph):
 
 
 def test_build_writes_a_render_graph_per_lighting(tmp_path):
-    from lbscene.engine.build import build_booth
+    from lbscene.engine.scene.build import build_booth
     from lbscene.runtimes.graph import load_render_graph
 
     res = build_booth(REPO / "tests" / "data" / "minimal-booth", tmp_path / "b")

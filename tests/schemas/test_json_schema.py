@@ -16,7 +16,7 @@ def test_committed_json_schemas_are_current():
 
 
 def test_booth_schema_lists_every_registered_effect():
-    from lbscene.engine.effects.registry import available_effects
+    from lbscene.engine.light.effects.registry import available_effects
 
     schema = json.loads((JSON_DIR / "booth.schema.json").read_text())
     assert set(schema["properties"]["effects"]["properties"]) == set(available_effects())

@@ -42,7 +42,7 @@ def exported(tmp_path_factory):
 def _moderngl(view: str, sample_index: int = 0, display=None) -> np.ndarray:
     from lbscene.runtimes.executor import GLUnavailableError
     from lbscene.runtimes.render import prepare_from_config
-    from lbscene.engine.visual_protocol import load_session
+    from lbscene.engine.visual.protocol import load_session
 
     job = prepare_from_config(CONFIG)
     if sample_index:

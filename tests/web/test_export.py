@@ -45,7 +45,7 @@ def test_folder_is_self_contained(exported):
 
 
 def test_same_graph_and_shader_files_as_the_runtime(exported):
-    from lbscene.engine.compile import compile_booth
+    from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.graph import SHADER_DIR, build_render_graph
 
     d = read_export(exported)
@@ -107,7 +107,7 @@ def test_size_limit(run_cli, tmp_path):
 def test_model_delta_e_feeds_visual_report(exported, run_cli, tmp_path):
     import csv
 
-    from lbscene.engine.visual_protocol import load_session
+    from lbscene.engine.visual.protocol import load_session
 
     rows = list(csv.DictReader((exported / "model-delta-e00.csv").open()))
     ses = load_session(SESSION)

@@ -13,9 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lbscene.engine.visual_protocol import balanced_blocks, load_session, plan_trials
-from lbscene.engine.visual_report import analyse
-from lbscene.engine.visual_stats import (
+from lbscene.engine.visual.protocol import balanced_blocks, load_session, plan_trials
+from lbscene.engine.visual.report import analyse
+from lbscene.engine.visual.stats import (
     delta_e_to_grey_scale,
     grey_scale_to_delta_e,
     inter_observer_stress,

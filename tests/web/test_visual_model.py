@@ -1,11 +1,11 @@
-"""The model's ΔE00 of a visual-test case (engine.visual_model) against closed forms."""
+"""The model's ΔE00 of a visual-test case (engine.visual.model) against closed forms."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from lbscene.engine.visual_model import case_delta_e00, reflectance_at
+from lbscene.engine.visual.model import case_delta_e00, reflectance_at
 from lbscene.runtimes.colour_bridge import srgb_display
 from lbscene.runtimes.scene import SampleSpec
 

@@ -56,7 +56,7 @@
     return [[f / aspect, 0, 0, 0], [0, f, 0, 0],
       [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]];
   }
-  function rotation(axis, deg) {   // right-handed, Rodrigues (engine.forward_geometry.rotation_matrix)
+  function rotation(axis, deg) {   // right-handed, Rodrigues (engine.light.geometry.rotation_matrix)
     const a = norm(axis), t = deg * Math.PI / 180, s = Math.sin(t), c = 1 - Math.cos(t);
     const k = [[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]];
     const r = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];

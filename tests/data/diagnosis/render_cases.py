@@ -6,7 +6,7 @@ and hand the tool a booth file from which the hidden physics was removed.  A sce
 booth folder whose ``effects:`` lists exactly the physics its truth includes; this script writes
 
 * ``truth-a3.csv``: illuminance on the 55-point A3 sheet with its Monte Carlo standard error
-  (:func:`lbscene.engine.truth_validation.write_truth_csv`, with the booth's sha256);
+  (:func:`lbscene.engine.truth.validation.write_truth_csv`, with the booth's sha256);
 * ``truth-tile.csv``: the radiance of an ideal white Lambertian tile (reflectance 1) at the
   sample position, as 5 nm bin means over 380–780 nm (a spectroradiometer's output), with its
   standard error: :math:`L_b = \\frac{1}{π}\\,\\overline{E}_b`.
@@ -38,7 +38,7 @@ TILE_BIN_NM = 5.0
 
 def render_tile(truth, ir) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """White-tile radiance (W·sr⁻¹·m⁻²·nm⁻¹) in 5 nm bins: centres, means, standard errors."""
-    from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as WL
+    from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
 
     edges = np.arange(380.0, 780.0 + TILE_BIN_NM, TILE_BIN_NM)
     bands = {}
@@ -54,15 +54,15 @@ def render_tile(truth, ir) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def render_scene(scene: str) -> None:
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.truth_mitsuba import VARIANT, MitsubaTruth, mitsuba_version
-    from lbscene.engine.truth_validation import (TruthData, booth_files_sha256, validation_grid,
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.mitsuba import VARIANT, MitsubaTruth, mitsuba_version
+    from lbscene.engine.truth.validation import (TruthData, booth_files_sha256, validation_grid,
                                                  write_truth_csv)
 
     folder = HERE / scene
     ir = compile_booth(folder / "booth.yaml")
     truth = MitsubaTruth(ir, LIGHTING, spp=SPP_PER_PASS, passes=MIN_PASSES, seed=1)
-    meta = {"scene": scene, "renderer": "Mitsuba 3 (lbscene.engine.truth_mitsuba.MitsubaTruth)",
+    meta = {"scene": scene, "renderer": "Mitsuba 3 (lbscene.engine.truth.mitsuba.MitsubaTruth)",
             "mitsuba_version": mitsuba_version(), "variant": VARIANT, "lighting": LIGHTING,
             "effects": ",".join(sorted(ir.effects)), "booth_sha256": booth_files_sha256(folder)}
     t0 = time.perf_counter()

@@ -4,9 +4,9 @@ Each scene is a booth folder ``<scene>/booth.yaml`` whose inputs are all declare
 luminance known, no fit) and whose ``effects:`` lists exactly the physics the truth includes.
 This script renders its illuminance on the validation grids (``a3``: the 55-point A3 sheet,
 ``floor``: 9 × 7 over the floor; receivers facing +z, ideal cosine response) with Mitsuba 3
-(:class:`lbscene.engine.truth_mitsuba.MitsubaTruth`, ``scalar_spectral``, ``path`` integrator
+(:class:`lbscene.engine.truth.mitsuba.MitsubaTruth`, ``scalar_spectral``, ``path`` integrator
 of unbounded depth) and writes ``truth-<grid>.csv`` beside the booth
-(:func:`lbscene.engine.truth_validation.write_truth_csv`), with the booth folder's sha256 so that
+(:func:`lbscene.engine.truth.validation.write_truth_csv`), with the booth folder's sha256 so that
 a test notices an edited booth.
 
 Sampling: passes of ``--spp`` samples (65536: Mitsuba accumulates a film in float32), each with
@@ -68,7 +68,7 @@ def truth_path(scene: str, grid: str) -> Path:
 
 
 def _receivers(ir, grid: str):
-    from lbscene.engine.truth_validation import validation_grid
+    from lbscene.engine.truth.validation import validation_grid
 
     P = validation_grid(ir, grid)
     return P, np.tile([0.0, 0.0, 1.0], (len(P), 1))
@@ -77,9 +77,9 @@ def _receivers(ir, grid: str):
 def render_scene(scene: str, grids=None, *, spp: int = SPP_PER_PASS, target_rel_error: float = TARGET_REL_ERROR,
                  min_passes: int = MIN_PASSES, max_passes: int = MAX_PASSES, seed: int = 0, log=print) -> None:
     """Render ``scene`` on ``grids`` (default all) and write ``truth-<grid>.csv`` beside its booth."""
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.truth_mitsuba import VARIANT, MitsubaTruth, mitsuba_version
-    from lbscene.engine.truth_validation import GRIDS, TruthData, booth_files_sha256, write_truth_csv
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.mitsuba import VARIANT, MitsubaTruth, mitsuba_version
+    from lbscene.engine.truth.validation import GRIDS, TruthData, booth_files_sha256, write_truth_csv
 
     folder = HERE / scene
     ir = compile_booth(folder)
@@ -92,7 +92,7 @@ def render_scene(scene: str, grids=None, *, spp: int = SPP_PER_PASS, target_rel_
         meta = {
             "scene": scene,
             "grid": grid,
-            "renderer": "Mitsuba 3 (lbscene.engine.truth_mitsuba.MitsubaTruth, path integrator, max_depth -1)",
+            "renderer": "Mitsuba 3 (lbscene.engine.truth.mitsuba.MitsubaTruth, path integrator, max_depth -1)",
             "mitsuba_version": mitsuba_version(),
             "variant": VARIANT,
             "spp_per_pass": spp,
@@ -125,9 +125,9 @@ def check_scene(scene: str, grids=None, *, points: int = 2, spp: int = SPP_PER_P
 
     Raises ``FileNotFoundError`` for a missing truth and ``ValueError`` for a booth edited
     since its truth was rendered."""
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.truth_mitsuba import MitsubaTruth
-    from lbscene.engine.truth_validation import GRIDS, booth_files_sha256, read_truth_csv
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.mitsuba import MitsubaTruth
+    from lbscene.engine.truth.validation import GRIDS, booth_files_sha256, read_truth_csv
 
     folder = HERE / scene
     sha = booth_files_sha256(folder)

@@ -1,0 +1,1014 @@
+"""
+Inter-reflection between the booth's interior surfaces (the ``interreflection`` effect).
+
+Classic radiosity on the IR's surfaces (floor, walls, ceiling, platform, and
+the booth's meshes such as a luminaire cavity), cut into patches of about
+``patch_size_mm``:
+
+    B_i(λ) = ρ_i(λ) · (E0_i(λ) + Σ_j F_ij B_j(λ))
+
+``E0`` is first-order light (lamps, with every enabled effect, plus diffuse
+re-emitters) averaged over each patch; ``F_ij`` the form factor from patch
+``i`` (averaged over 2×2 points of it) to polygon ``j`` (exact contour
+integral); the system is solved per band (LU factors are cached for the
+reflectance set).  A receiver then gets ``Σ_j F(x ← j)·B_j`` — exact
+polygon form factors again, clipped to the receiver's hemisphere, so
+vertical receivers near walls are right.
+
+The transfer from a source spectrum to indirect light depends only on the
+(smooth) surface reflectances, so it is solved at the band centres and
+interpolated to 1 nm, where it multiplies the lamps' 1 nm spectra.
+
+Visibility: the box interior is convex, so without meshes nothing is tested
+(exact).  Meshes (``role: mesh``, e.g. the BYK's white luminaire cavity
+around its lamp) take part when the effect's ``meshes`` is on (default):
+both faces of every mesh triangle become patches (Cycles reflects on both
+sides too), and the mesh blocks light on every path the solve uses — lamp
+point → patch point (first-order light), patch centre → patch centre (form
+factors, 0/1) and receiver → 36 low-discrepancy points of each patch, 144
+where the receiver sees the patch only partly (gather: the light of a
+cavity reaches the booth through its aperture's edges).  The gather tests
+points only where it must: a (receiver, patch) pair whose pyramid misses
+every mesh's convex hull is seen whole, one whose four corners a single
+convex mesh face hides is hidden whole (both exact), and the rest are
+tested as one matrix product per receiver (on the BYK's ~500 runtime
+receivers × 2678 patches: 43 s → 8 s, the same fractions).  Leaving a white
+cavity out overstated the booth's first-order light on walls and ceiling
+(the lamp's back light reached them straight through the cavity) and left
+out the light the cavity reflects through its aperture: on the BYK grid the
+model gave +5 % for inter-reflection where Cycles gives +129 % (the model
+with meshes: +129 %, per point within 2 % of a Cycles bake with 0.8 % noise).
+Bodies in the way (:func:`transport_bodies`): the lamps' own bodies (a
+tube's cylinder, a panel, a bulb; ``lamp_bodies``, default on) and, with the
+``aperture_occlusion`` effect, the declared occluders block light on the
+same paths as the meshes.  An occluder with a material also reflects: both its
+faces are patches (:func:`occluder_patches`), as a mesh's are; one without a
+material absorbs.  In the SpectraLight QC the white walls of the two D65 lamp
+boxes and the masks' undersides reflect: the model had left them black, and
+its inter-reflected light on the A3 grid was 7 % under a Cycles bake that
+drew them with their materials.  A lamp's light
+on the patches is tested against the other lamps' bodies, not its own.  Two
+bare tubes 80 mm under a 45 % ceiling hide from the floor the strip of
+ceiling they light most: without their bodies the model was 5 % above Mitsuba
+3 over the floor (inter-reflected light 12 % too high); with them, within the
+truth's 0.5 % noise.  The direct light at receivers is not tested against
+meshes or bodies (the occluders' own effect does that).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from lbscene.engine.files.disk_cache import cached_array
+from .geometry import (Patches, _breaks, _grid_quad, bodies_block, plate_pieces,
+                               coplanar_convex_faces, hidden_from_apex, mesh_patches, mesh_triangles,
+                               polygon_form_factor, pyramids_clear_of, quad_areas, quad_centroids,
+                               quad_r2_points, quad_subpoints, segments_blocked, pairs_near_bodies,
+                               segments_blocked_by_polygon, visibility_matrix)
+
+__all__ = ["RadiosityTransport", "radiosity_transport", "patch_form_factors", "interior_patches",
+           "occluder_patches", "transport_bodies", "transport_occluders",
+           "mesh_patch_size_mm", "BOX_ROLES"]
+
+#: IR surface roles of the booth's box (and platform): a convex set, no visibility needed
+BOX_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall", "platform")
+#: points on a patch are moved this far (mm) along its normal before a visibility test,
+#: so the patch's own face never blocks them
+NUDGE_MM = 1e-3
+#: receivers see a patch through GATHER_SUB² points of it, GATHER_FINE² where they see it only
+#: partly (through an aperture's edge); 8² / 24² changed the BYK grid by 0.1 % RMS
+GATHER_SUB = 6
+GATHER_FINE = 12
+#: first-order light on a patch close to a lamp (its centre within 1.5 diagonals) is the
+#: mean over NEAR_SUB² points of it
+NEAR_SUB = 3
+#: box patches are split while their diagonal exceeds this times their distance to a lit lamp …
+REFINE_RATIO = 1.5
+#: relative step to which the fitted numbers that shape lamp light are rounded for the light
+#: reaching the patches (RadiosityTransport._transport_model)
+TRANSPORT_PARAM_STEP = 0.02
+#: ... and the absolute step near zero
+TRANSPORT_PARAM_FLOOR = 1e-3
+#: … down to this size (mm)
+REFINE_MIN_MM = 15.0
+#: points (tube slices, panel cells) per lamp for the light reaching the patches; the forward
+#: model's near-field rule refines them for patches within a few spacings of the lamp (25 instead
+#: of the shipped booths' 100 moved their grids by at most 0.02 %, every lighting)
+TRANSPORT_LAMP_POINTS = 25
+#: segments sampled between two patches whose mutual view a body (lamp, occluder) may cross
+FF_BODY_PAIRS = 8
+#: a mesh is cut into at least this many patches across its smallest extent, unless the
+#: effect's ``mesh_patch_size_mm`` says otherwise (the BYK's white cavity, 120 mm deep around
+#: two tube legs: 3 across put the grid 0.7 % above Mitsuba 3, 5 across 0.2 % under it)
+MESH_PATCHES_ACROSS = 3
+
+
+#: an occluder is cut into at least this many patches across its smaller side (3 instead
+#: moved the SpectraLight's grid by 0.02 %, the white cavity validation scene by 0.1 %)
+OCCLUDER_PATCHES_ACROSS = 2
+#: … and sampled at this many points squared for their first-order light when near a lamp
+#: (3 × 3 moved the SpectraLight's grid by 0.01 %; its lamp boxes' walls are all near their lamp)
+OCCLUDER_NEAR_SUB = 2
+#: occluder patches may be this many times longer along an occluder's longer side than across
+#: its shorter one (a lamp box's 560 × 70 mm wall: 2 × 6 patches of 35 × 93 mm a face)
+OCCLUDER_PATCH_ASPECT = 3.0
+
+
+def mesh_patch_size_mm(ir, patch_size_mm: float, declared_mm: float | None = None) -> float:
+    """Patch size for the booth's meshes: at most 1/:data:`MESH_PATCHES_ACROSS` of the smallest extent
+    of any mesh, so a luminaire cavity is cut into several patches across however coarse the
+    booth's patches (the diagnosis solves on 100 mm patches); ``declared_mm`` (the effect's
+    ``mesh_patch_size_mm``) when the booth sets it."""
+    if declared_mm is not None:
+        return float(declared_mm)
+    ext = [np.ptp(s.vertex_array, axis=0) for s in ir.surfaces if s.role == "mesh"]
+    if not ext:
+        return patch_size_mm
+    smallest = min(float(np.min(e[e > 1e-6])) if np.any(e > 1e-6) else patch_size_mm for e in ext)
+    return min(patch_size_mm, smallest / MESH_PATCHES_ACROSS)
+
+
+def _lamp_distance_mm(lamps, points: np.ndarray) -> np.ndarray:
+    """Distance from each point to the nearest of ``lamps``' surfaces (a tube's or bulb's; a
+    panel's axis segment, a point); at least 1 mm."""
+    d = np.full(len(points), np.inf)
+    for lp in lamps:
+        o = np.asarray(lp.position_mm, float)
+        ax = np.asarray(lp.axis, float)
+        half = lp.length_mm / 2 if lp.kind in ("tube", "panel") else 0.0
+        t = np.clip((points - o) @ ax, -half, half)
+        r = lp.radius_mm if lp.kind in ("tube", "bulb") else 0.0
+        d = np.minimum(d, np.maximum(np.linalg.norm(points - o - np.outer(t, ax), axis=1) - r, 1.0))
+    return d
+
+
+def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
+                      min_size_mm: float | None = None, lamps=None) -> Patches:
+    """Split patches 2 × 2 (repeatedly) while their diagonal exceeds ``ratio`` times the
+    distance from their centre to the nearest lamp surface (of ``lamps``, default every
+    lamp), down to ``min_size_mm``.
+
+    Radiosity takes each patch as uniform.  Next to a lamp its first-order light is
+    not: a tube 17 mm under a ceiling lights a strip a few centimetres wide, and that
+    strip is exactly what the tube's body hides from the booth below.  On coarse patches
+    the hidden strip is averaged with its dim surroundings and the shadow comes out too
+    weak (SpectraLight TL84: the A3 grid moved 3 % between 25 and 75 mm uniform patches);
+    refined only there, the solution holds with coarse patches elsewhere: 100 mm patches
+    refined at the defaults (1.5, 15 mm) are within 0.5 % RMS of 50 mm patches refined at
+    (1.0, 10 mm) for every lighting of the SpectraLight QC, with a third of the patches.
+    """
+    ratio = REFINE_RATIO if ratio is None else ratio
+    min_size_mm = REFINE_MIN_MM if min_size_mm is None else min_size_mm
+    polys, normals, mats, surfs = [patches.polys], [patches.normals], [patches.material], [patches.surface]
+    done_p, done_n, done_m, done_s = [], [], [], []
+    for _ in range(8):
+        P, N, M, S = polys[-1], normals[-1], mats[-1], surfs[-1]
+        if not len(P):
+            break
+        c = quad_centroids(P)
+        diag = np.maximum(np.linalg.norm(P[:, 2] - P[:, 0], axis=1), np.linalg.norm(P[:, 3] - P[:, 1], axis=1))
+        near = diag > ratio * _lamp_distance_mm(ir.lamps if lamps is None else lamps, c)
+        split = near & (diag > min_size_mm * np.sqrt(2) * 2)
+        keep = ~split
+        done_p.append(P[keep]); done_n.append(N[keep]); done_m.append(M[keep]); done_s.append(S[keep])
+        if not split.any():
+            break
+        kids = np.concatenate([_grid_quad(*q, 2, 2) for q in P[split]]) if split.sum() else P[:0]
+        polys.append(kids)
+        normals.append(np.repeat(N[split], 4, axis=0))
+        mats.append(np.repeat(M[split], 4))
+        surfs.append(np.repeat(S[split], 4))
+    else:
+        P = polys[-1]
+        done_p.append(P); done_n.append(normals[-1]); done_m.append(mats[-1]); done_s.append(surfs[-1])
+    Pall = np.concatenate(done_p)
+    return Patches(Pall, np.concatenate(done_n), quad_areas(Pall), np.concatenate(done_m),
+                   np.concatenate(done_s))
+
+
+def _round_number(v: float) -> float:
+    """``v`` on a grid of relative steps :data:`TRANSPORT_PARAM_STEP` (absolute steps of
+    :data:`TRANSPORT_PARAM_FLOOR` near 0)."""
+    if abs(v) < TRANSPORT_PARAM_FLOOR / TRANSPORT_PARAM_STEP:
+        return round(v / TRANSPORT_PARAM_FLOOR) * TRANSPORT_PARAM_FLOOR
+    step = math.log1p(TRANSPORT_PARAM_STEP)
+    return math.copysign(math.exp(round(math.log(abs(v)) / step) * step), v)
+
+
+def _rounded(params, declared=None) -> dict:
+    """Effect parameters (or a lamp override) with every float that differs from the declared
+    one rounded (see _round_number)."""
+    declared = dict(declared or {})
+    return {k: (_round_number(v) if isinstance(v, float) and v != declared.get(k) else v)
+            for k, v in dict(params or {}).items()}
+
+
+def _changes_lamp_light(effect_id: str) -> bool:
+    """Whether an effect changes the light lamps send to surfaces (any hook but a meter's)."""
+    from lbscene.engine.light.effects.registry import get_effect
+
+    cls = get_effect(effect_id)
+    return any(getattr(cls, h, None) is not None for h in
+               ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources"))
+
+
+def _concat_patches(parts) -> Patches:
+    parts = [x for x in parts if len(x)]
+    return Patches(np.concatenate([x.polys for x in parts]), np.concatenate([x.normals for x in parts]),
+                   np.concatenate([x.areas_mm2 for x in parts]),
+                   np.concatenate([x.material for x in parts]),
+                   np.concatenate([x.surface for x in parts]))
+
+
+def _both_faces(m: Patches) -> Patches:
+    """``m`` and its back faces (reversed winding, opposite normals, surface ids ``…:back``)."""
+    back = Patches(m.polys[:, [0, 3, 2, 1]], -m.normals, m.areas_mm2, m.material,
+                   np.array([f"{x}:back" for x in m.surface], object))
+    return _concat_patches((m, back))
+
+
+def occluder_patches(occluders, patch_size_mm: float) -> Patches:
+    """Both faces of every occluder that has a material, as patches.
+
+    ``occluders``: ``(IROccluder, Rectangle)`` pairs (:func:`transport_occluders`).  An
+    aperture plate is the frame around its opening (four rectangles).  Each occluder is cut
+    into patches of at most ``patch_size_mm`` and at least :data:`OCCLUDER_PATCHES_ACROSS`
+    across its smaller side (a lamp box's 70 mm wall: 35 mm patches), up to
+    :data:`OCCLUDER_PATCH_ASPECT` times longer along the other.  An occluder
+    without a material absorbs: it blocks light (:func:`transport_bodies`) and is no patch.
+    """
+    polys, mats, surfs = [], [], []
+    for o, r in occluders:
+        if o.material is None:
+            continue
+        c, n, u, v = (np.asarray(x, float) for x in (r.centre, r.normal, r.u, r.v))
+        hu, hv = r.half
+        across = min(patch_size_mm, 2 * min(hu, hv) / OCCLUDER_PATCHES_ACROSS)
+        along = min(patch_size_mm, OCCLUDER_PATCH_ASPECT * across)
+        size_u, size_v = (along, across) if hu >= hv else (across, along)
+        pieces = plate_pieces(r.half, r.hole_half)
+        # cut along the planes of the occluders that stand on this one (a lamp box's wall on
+        # its mask): no patch straddles them
+        others = [x for x in occluders if x[0].id != o.id]
+        cu, cv = [], []
+        for pc, pn in _standing_on(others, _rect_corners(r), n):
+            if abs(pn @ v) < 1e-6 and abs(pn @ u) > 1e-6:
+                cu.append(float((pc - c) @ pn) / float(u @ pn))
+            elif abs(pn @ u) < 1e-6 and abs(pn @ v) > 1e-6:
+                cv.append(float((pc - c) @ pn) / float(v @ pn))
+        for u0, u1, v0, v1 in pieces:
+            # corners counter-clockwise seen from the normal's side (the face's normal is n)
+            q = [c + a * u + b * v for a, b in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))]
+            nu = _breaks(u1 - u0, size_u, [(x - u0) / (u1 - u0) for x in cu])
+            nv = _breaks(v1 - v0, size_v, [(x - v0) / (v1 - v0) for x in cv])
+            g = _grid_quad(*q, nu, nv)
+            polys.append(g)
+            mats += [o.material] * len(g)
+            surfs += [f"occluder:{o.id}"] * len(g)
+    if not polys:
+        z = np.zeros((0, 4, 3))
+        return Patches(z, np.zeros((0, 3)), np.zeros(0), np.array([], object), np.array([], object))
+    P = np.concatenate(polys)
+    nrm = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    return _both_faces(Patches(P, nrm, quad_areas(P), np.array(mats, object), np.array(surfs, object)))
+
+
+#: an occluder whose rectangle comes this close (mm) to a surface (a box surface or another
+#: occluder) stands on it: the surface's patches are cut along the occluder's plane
+TOUCH_MM = 10.0
+
+
+def _rect_corners(r) -> np.ndarray:
+    c, u, v = (np.asarray(x, float) for x in (r.centre, r.u, r.v))
+    return np.array([c + a * r.half[0] * u + b * r.half[1] * v for a in (-1, 1) for b in (-1, 1)])
+
+
+def _standing_on(occluders, corners: np.ndarray, normal: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Planes ``(point, normal)`` of the occluders that stand on the flat surface with
+    ``corners`` (a corner of the occluder within :data:`TOUCH_MM` of the surface's plane and
+    of its extent; occluders parallel to it do not cut it)."""
+    out = []
+    lo, hi = corners.min(axis=0) - TOUCH_MM, corners.max(axis=0) + TOUCH_MM
+    for _, r in occluders:
+        n = np.asarray(r.normal, float)
+        if abs(float(n @ normal)) > 1 - 1e-6:
+            continue
+        oc = _rect_corners(r)
+        near = np.abs((oc - corners[0]) @ normal) <= TOUCH_MM
+        inside = np.all((oc >= lo) & (oc <= hi), axis=1)
+        if np.any(near & inside):
+            out.append((np.asarray(r.centre, float), n))
+    return out
+
+
+def _box_cut_planes(ir, occluders) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Planes of the occluders that stand on one of the box's surfaces."""
+    planes = []
+    for s in ir.surfaces:
+        if s.role not in BOX_ROLES:
+            continue
+        v = s.vertex_array
+        n = np.cross(v[1] - v[0], v[2] - v[0])
+        planes += _standing_on(occluders, v, n / np.linalg.norm(n))
+    return planes
+
+
+def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, occluders=(),
+                     mesh_patch_mm: float | None = None) -> Patches:
+    """Patches of the box surfaces, refined near ``lamps`` (default: every lamp; the
+    transport passes the lamps a lighting turns on), plus both faces of every mesh triangle
+    when ``meshes`` (at :func:`mesh_patch_size_mm`) and of every occluder of ``occluders``
+    that has a material (:func:`occluder_patches`)."""
+    # walls are cut at a diffuser plate's height, and surfaces along the plane of an occluder
+    # that stands on them: no patch straddles a plate or a panel
+    z_cuts = (ir.diffuser.z_mm,) if ir.diffuser is not None else ()
+    parts = [refine_near_lamps(ir, mesh_patches(ir, patch_size_mm, roles=BOX_ROLES, z_cuts_mm=z_cuts,
+                                                cut_planes=_box_cut_planes(ir, occluders)),
+                               lamps=lamps)]
+    m = None
+    if meshes:
+        m = mesh_patches(ir, mesh_patch_size_mm(ir, patch_size_mm, mesh_patch_mm), roles=("mesh",))
+        m = _both_faces(m) if len(m) else None
+    o = occluder_patches(occluders, patch_size_mm)
+    o = o if len(o) else None
+    if m is not None and o is not None:
+        m, o = _coplanar_cover(m, o, occluders, mesh_triangles(ir))
+    parts += [x for x in (m, o) if x is not None and len(x)]
+    return parts[0] if len(parts) == 1 else _concat_patches(parts)
+
+
+#: a mesh face and an occluder closer than this (mm) are one plate
+COPLANAR_MM = 0.5
+
+
+def _keep(p: Patches, keep: np.ndarray) -> Patches:
+    return Patches(p.polys[keep], p.normals[keep], p.areas_mm2[keep], p.material[keep], p.surface[keep])
+
+
+def _coplanar_cover(m: Patches, o: Patches, occluders, tris: np.ndarray) -> tuple[Patches, Patches]:
+    """Where an occluder lies on a mesh face (an aperture plate that is the cavity's bottom),
+    the occluder is seen from its front (the side its normal points to) and the mesh from the
+    other: mesh patches facing the occluder's way on its rectangle are covered by it, and the
+    occluder's back-face patches on a mesh face are covered by the mesh (the Cycles bake draws
+    the occluder a hair in front of the mesh, :data:`~lbscene.engine.light.geometry.OCCLUDER_OFFSET_MM`).
+    Without this both would reflect the same light."""
+    keep_m = np.ones(len(m), bool)
+    cm = m.centres
+    for _, r in occluders:
+        c, n, u, v = (np.asarray(x, float) for x in (r.centre, r.normal, r.u, r.v))
+        d = cm - c
+        a, b = d @ u, d @ v
+        on = (np.abs(d @ n) <= COPLANAR_MM) & (m.normals @ n > 1 - 1e-6) & \
+            (np.abs(a) <= r.half[0]) & (np.abs(b) <= r.half[1])
+        if r.hole_half is not None:
+            on &= ~((np.abs(a) < r.hole_half[0]) & (np.abs(b) < r.hole_half[1]))
+        keep_m &= ~on
+    keep_o = np.ones(len(o), bool)
+    back = np.array([str(x).endswith(":back") for x in o.surface], bool)
+    if back.any() and len(tris):
+        co = o.centres
+        e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+        tn = np.cross(e1, e2)
+        tn /= np.maximum(np.linalg.norm(tn, axis=1), 1e-12)[:, None]
+        for i in np.nonzero(back)[0]:
+            w = co[i] - tris[:, 0]
+            plane = (np.abs(np.einsum("ij,ij->i", w, tn)) <= COPLANAR_MM) & \
+                (np.abs(tn @ o.normals[i]) > 1 - 1e-6)
+            if not plane.any():
+                continue
+            # barycentric coordinates of the patch centre in the coplanar triangles
+            E1, E2, W = e1[plane], e2[plane], w[plane]
+            d11, d12, d22 = (E1 * E1).sum(1), (E1 * E2).sum(1), (E2 * E2).sum(1)
+            w1, w2 = (W * E1).sum(1), (W * E2).sum(1)
+            den = d11 * d22 - d12 * d12
+            s_ = (d22 * w1 - d12 * w2) / den
+            t_ = (d11 * w2 - d12 * w1) / den
+            if np.any((s_ >= -1e-9) & (t_ >= -1e-9) & (s_ + t_ <= 1 + 1e-9)):
+                keep_o[i] = False
+    return _keep(m, keep_m), _keep(o, keep_o)
+
+
+def patch_form_factors(patches: Patches, sub: int = 2, near_factor: float = 3.0,
+                       blockers: np.ndarray | None = None) -> np.ndarray:
+    """(P, P) form factors F[i, j] from patch i to polygon j.
+
+    Exact point-to-polygon form factors from the centre of patch i; pairs
+    closer than ``near_factor`` patch diagonals (where the centre is not
+    representative of the patch) are averaged over ``sub × sub`` points.
+    ``blockers`` (T, 3, 3): triangles that hide patch j from patch i when
+    they cross the segment between the patch centres (symmetric, 0/1).
+    """
+    from .geometry import polygon_form_factor_pairs
+
+    c = patches.centres
+    F = polygon_form_factor(c, patches.normals, patches.polys, patches.normals)
+    diag = np.linalg.norm(patches.polys[:, 2] - patches.polys[:, 0], axis=1)
+    dist = np.linalg.norm(c[:, None, :] - c[None, :, :], axis=2)
+    near = dist < near_factor * np.maximum(diag[:, None], diag[None, :])
+    np.fill_diagonal(near, False)
+    ii, jj = np.nonzero(near)
+    if ii.size:
+        pts, w = quad_subpoints(patches.polys, sub)                   # (P, s, 3)
+        k = sub * sub
+        f = polygon_form_factor_pairs(pts[ii].reshape(-1, 3), np.repeat(patches.normals[ii], k, axis=0),
+                                      np.repeat(patches.polys[jj], k, axis=0))
+        F[ii, jj] = (f.reshape(-1, k) * w[ii]).sum(axis=1)
+    np.fill_diagonal(F, 0.0)
+    if blockers is not None and len(blockers):
+        ii, jj = np.nonzero(np.triu((F > 0) | (F.T > 0), 1))
+        a = c[ii] + NUDGE_MM * patches.normals[ii]
+        b = c[jj] + NUDGE_MM * patches.normals[jj]
+        hidden = segments_blocked(a, b, blockers)
+        F[ii[hidden], jj[hidden]] = 0.0
+        F[jj[hidden], ii[hidden]] = 0.0
+    return F
+
+
+def transport_bodies(ctx, p) -> list[tuple[str, object]]:
+    """Bodies that block light between surfaces, as ``(owner, body)``.
+
+    * ``lamp:<id>``: every lamp's body when ``lamp_bodies`` is on (a lamp that
+      is off still casts its shadow): a tube's :class:`~lbscene.engine.light.geometry.Capsule`,
+      a panel's rectangle, a bulb's :class:`~lbscene.engine.light.geometry.Ball`;
+    * ``occluder:<id>``: every declared occluder when the ``aperture_occlusion`` effect is on
+      (an aperture plate with its declared opening): real plates block
+      inter-reflected light as well as the lamps' (an occluder declared for some lamps only
+      still blocks all light between surfaces).
+
+    Bodies block; occluders with a material also reflect, as patches of their own
+    (:func:`occluder_patches`).  Platform-mounted ones are taken where the IR puts them (the
+    platform at rotation 0), as platform-mounted meshes are: a luminaire that turns with the
+    platform keeps its lamps, cavity and aperture together (the BYK's two tube legs absorb
+    in its white cavity: leaving them out put the model's light on the grid 34 % above a
+    Cycles bake, which draws them).
+    """
+    from .geometry import lamp_body
+
+    ir = ctx.ir
+    out = []
+    if getattr(p, "lamp_bodies", True):
+        for lp in ir.lamps:
+            body = lamp_body(lp)
+            if body is not None:
+                out.append((f"lamp:{lp.id}", body))
+    for o, rect in transport_occluders(ctx):
+        out.append((f"occluder:{o.id}", rect))
+    return out
+
+
+def transport_occluders(ctx) -> list[tuple[object, object]]:
+    """The occluders the transport sees, as ``(IROccluder, Rectangle)`` with
+    their declared openings, when the ``aperture_occlusion`` effect is on (else none).
+
+    A fitted ``opening_scale`` acts on the lamps' light (the effect's own path factors), not
+    on the far weaker inter-reflected light, so a fit that moves it does not redo the
+    transport's patches and visibility at every step."""
+    if "aperture_occlusion" not in ctx.effects:
+        return []
+    from lbscene.engine.light.effects.catalog import _occluder_rects
+
+    occ = ctx.params("aperture_occlusion").model_copy(update={"opening_scale": 1.0, "opening_scale_u": 1.0,
+                                                                 "opening_scale_v": 1.0})
+    return list(_occluder_rects(ctx.ir, occ))
+
+
+def _body_signature(bodies) -> tuple:
+    """Hashable content of ``(owner, body)`` pairs (cache keys)."""
+    sig = []
+    for owner, b in bodies:
+        vals = [np.ravel(np.asarray(v, float)).tolist() if v is not None else None
+                for v in vars(b).values()]
+        sig.append((owner, type(b).__name__, repr(vals)))
+    return tuple(sig)
+
+
+def _hidden_points(P_rx, pts_all, rows, cols, first, count, tris) -> np.ndarray:
+    """(pairs, count) flags: is point ``first … first+count`` of patch ``cols`` hidden by the mesh
+    triangles ``tris`` from receiver ``rows``?  Pairs come sorted by receiver: each receiver
+    tests its patches' points at once."""
+    out = np.empty((len(rows), count), bool)
+    pts = pts_all[:, first:first + count]
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if rows.size else rows
+    for s, e in zip(starts, np.r_[starts[1:], rows.size].astype(int)):
+        c = cols[s:e]
+        out[s:e] = hidden_from_apex(P_rx[rows[s]], pts[c].reshape(-1, 3), tris).reshape(len(c), count)
+    return out
+
+
+def _half_diagonals(polys: np.ndarray) -> np.ndarray:
+    c = quad_centroids(polys)
+    return np.linalg.norm(polys - c[:, None, :], axis=2).max(axis=1)
+
+
+def radiosity_transport(ctx, p, model) -> "RadiosityTransport":
+    return RadiosityTransport(ctx, p, model)
+
+
+class RadiosityTransport:
+    """Radiosity solution for one forward model (one parameter set)."""
+
+    def __init__(self, ctx, p, model):
+        self.ctx, self.p, self.model = ctx, p, model
+        ir = ctx.ir
+        # patches are refined near the lamps this lighting turns on (a lamp that is off
+        # lights nothing: its body's shadow is cast by the others' light, far off)
+        lit = tuple(sorted({lp.id for lp, _ in ir.lamps_on(model.lighting)}))
+        occluders = transport_occluders(ctx)
+        # occluders cut the box's patches where they stand on it; with a material, they
+        # reflect (both faces are patches), as the booth declares
+        occ_key = _body_signature([(f"{o.id}:{o.material}", r) for o, r in occluders])
+        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key)
+        if key not in ctx.cache:
+            lamps = [lp for lp in ir.lamps if lp.id in lit]
+            patches = interior_patches(ir, p.patch_size_mm, p.meshes, lamps=lamps, occluders=occluders,
+                                       mesh_patch_mm=p.mesh_patch_size_mm)
+            from lbscene.engine.files.limits import check_work
+
+            check_work("patches", len(patches.polys),
+                       what=f"inter-reflection patches at patch_size_mm {p.patch_size_mm:g}")
+            blockers = mesh_triangles(ir) if p.meshes else np.zeros((0, 3, 3))
+            # the booth's heaviest geometry (BYK: 2678 patches, 10 s): kept on disk across runs
+            F = cached_array("form_factors", (patches.polys, patches.normals, blockers), (2, 3.0, NUDGE_MM),
+                             lambda: patch_form_factors(patches, blockers=blockers),
+                             shape=(len(patches.polys), len(patches.polys)))
+            ctx.cache[key] = (patches, F, blockers)
+        self.patches, self.F, self.blockers = ctx.cache[key]
+        self._patch_key = key
+        # lamp bodies and occluders (analytic shapes) block patch-to-patch exchange too
+        self.bodies = transport_bodies(ctx, p)
+        self._body_sig = _body_signature(self.bodies)
+        self._body_digest = np.frombuffer(hashlib.sha256(repr(self._body_sig).encode()).digest(), np.uint8)
+        if self.bodies:
+            bk = key + ("bodies", self._body_sig)
+            if bk not in ctx.cache:
+                ctx.cache[bk] = self._F_past_bodies(self.F)
+            self.F = ctx.cache[bk]
+        # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
+        # convex hull need no visibility points
+        self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
+        rk = key + ("rho", p.reflectance_scale)
+        if rk not in ctx.cache:
+            mats = ir.materials
+            rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
+                len(self.patches), -1)
+            ctx.cache[rk] = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
+        self.rho = ctx.cache[rk]
+        self._rho_key = rk
+        # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
+        # transmits inter-reflected light with its regular transmittance; a rough slab with
+        # its hemispherical transmittance (diffuse light, plate_diffuse_light_factor)
+        self.plate_T = None
+        self.cross_pp = None
+        if "diffuser" in ctx.effects and ir.diffuser is not None:
+            from lbscene.engine.light.effects.catalog import DiffuserEffect, _diffuser_rect, plate_diffuse_light_factor
+            from .geometry import segment_hits_rectangle
+
+            dp = ctx.params("diffuser")
+            self.plate_rect = _diffuser_rect(ir)
+            self.plate_T = ir.grid.integrate(DiffuserEffect._spectrum(ctx, dp)) * \
+                plate_diffuse_light_factor(ir)                                          # (B,)
+            ck = key + ("plate_cross",)
+            if ck not in ctx.cache:
+                c = self.patches.centres
+                ctx.cache[ck] = segment_hits_rectangle(c, c, self.plate_rect)
+            self.cross_pp = ctx.cache[ck]
+        self._B = None
+        self._terms = None
+        self._E0 = None
+
+    # ------------------------------------------------------------------ solve
+    def _first_order_at_patches(self):
+        patches = self.patches
+        ir = self.ctx.ir
+        c = patches.centres
+        diag = np.linalg.norm(patches.polys[:, 2] - patches.polys[:, 0], axis=1)
+        # patches close to a lamp (relative to their size) are averaged over more points
+        dist = np.full(len(c), np.inf)
+        for lp, _ in ir.lamps_on(self.model.lighting):
+            o = np.asarray(lp.position_mm, float)
+            ax = np.asarray(lp.axis, float)
+            half = lp.length_mm / 2 if lp.kind in ("tube", "panel") else 0.0
+            t = np.clip((c - o) @ ax, -half, half)
+            dist = np.minimum(dist, np.linalg.norm(c - o - np.outer(t, ax), axis=1))
+        near = dist < 1.5 * diag
+        # occluders (a lamp box's walls, all of them near its lamp) at 2 × 2 points
+        occ = np.char.startswith(patches.surface.astype(str), "occluder:")
+        idx, pts_l, w_l, nrm_l = [], [], [], []
+        for k, sel in ((1, ~near), (NEAR_SUB, near & ~occ), (OCCLUDER_NEAR_SUB, near & occ)):
+            if not sel.any():
+                continue
+            pts, w = quad_subpoints(patches.polys[sel], k)
+            ii = np.nonzero(sel)[0]
+            idx.append(np.repeat(ii, k * k))
+            pts_l.append(pts.reshape(-1, 3))
+            w_l.append(w.ravel())
+            nrm_l.append(np.repeat(patches.normals[sel], k * k, axis=0))
+        idx = np.concatenate(idx)
+        pts = np.concatenate(pts_l)
+        w = np.concatenate(w_l)
+        nrm = np.concatenate(nrm_l)
+        # nudge off the surface so paths leaving a patch never count it as an occluder
+        terms = self._transport_model().first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
+                                                          pair_factor=self._lamp_visibility())
+        E0 = np.zeros((len(patches), len(terms)))
+        for k, t in enumerate(terms):
+            E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
+        return terms, E0
+
+    def _transport_model(self):
+        """The model whose lamp light lights the patches: this one with every fitted number that
+        shapes lamp light (effect parameters, lamp σ overrides) rounded to
+        :data:`TRANSPORT_PARAM_STEP` (relative; steps of :data:`TRANSPORT_PARAM_FLOOR` below it).
+
+        Light reaching the walls changes smoothly with those numbers and reaches a reading only
+        after a bounce, so a fit re-evaluates it when a parameter moves by a step, not at every
+        evaluation (a 2 % change of a beam's σ or an opening changes the inter-reflected light
+        by a fraction of a percent of itself); the readings' direct light always sees the exact
+        parameters.  Its lamps are integrated over at most :data:`TRANSPORT_LAMP_POINTS`
+        points (the near-field rule refines them where a patch is close), not the readings'
+        ``point_sources``."""
+        m = self.model
+        # numbers as the booth declares them stay exact: only what a fit moves is rounded
+        eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if _changes_lamp_light(eid) else p)
+               for eid, p in m.effects.items()}
+        lo = {lid: _rounded(o) for lid, o in m.ctx.lamp_overrides.items()}
+        opts = replace(m.options, lamp_points=TRANSPORT_LAMP_POINTS)
+        if eff == m.effects and lo == m.ctx.lamp_overrides and opts == m.options:
+            return m
+        from pydantic import ValidationError
+
+        from .forward import ForwardModel
+
+        try:
+            return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=opts,
+                                cache=m.ctx.cache)
+        except ValidationError:         # rounded past a parameter's bound: exact, then
+            return ForwardModel(m.ir, m.lighting, effects=m.effects, lamp_overrides=m.ctx.lamp_overrides,
+                                options=opts, cache=m.ctx.cache)
+
+    def _F_past_bodies(self, F: np.ndarray) -> np.ndarray:
+        """``F`` times the fraction of each pair's mutual view that no body crosses.
+
+        A pair no segment between the two patches can bring near a body
+        (:func:`swept_pairs_near_body`) is seen whole; the others are sampled with ``FF_BODY_PAIRS``
+        segments between matched low-discrepancy points of the two patches (a thin tube
+        a few centimetres from a ceiling hides part of a patch, not all or nothing).
+        """
+        polys, nrm = self.patches.polys, self.patches.normals
+        c = self.patches.centres + NUDGE_MM * nrm
+        hd = _half_diagonals(polys)
+        ii, jj = np.nonzero(np.triu((F > 0) | (F.T > 0), 1))
+        bodies = [b for _, b in self.bodies]
+
+        def compute():
+            n = FF_BODY_PAIRS
+            V = np.ones(ii.size)
+            hid = None
+            pts = None
+            # per body, only the pairs a segment between them may bring near it
+            for b, k in zip(bodies, pairs_near_bodies(bodies, c[ii], c[jj], hd[ii], hd[jj])):
+                if not k.size:
+                    continue
+                if pts is None:
+                    pts = quad_r2_points(polys, n)[0] + NUDGE_MM * nrm[:, None, :]
+                    hid = np.zeros((ii.size, n), bool)
+                # patch j's points in reverse order: the pairs cover the two patches evenly
+                A = pts[ii[k]].reshape(-1, 3)
+                B = pts[jj[k]][:, ::-1].reshape(-1, 3)
+                hid[k] |= bodies_block(A, B, [b]).reshape(-1, n)
+            if hid is not None:
+                V = 1.0 - hid.mean(axis=1)
+            return V
+
+        V = cached_array("body_form_factor_view", (c[ii], c[jj], hd), self._body_sig + (FF_BODY_PAIRS,),
+                         compute, shape=ii.shape)
+        F = F.copy()
+        F[ii, jj] *= V
+        F[jj, ii] *= V
+        return F
+
+    def _lamp_visibility(self):
+        """``pair_factor`` for the lamps' light on patch points: 0 where a mesh or another
+        lamp's body is in the way (occluders act on lamp light through their own effect).
+        A lamp's quadrature points lie inside its own body, which is therefore left out for
+        its own light."""
+        tris = self.blockers
+        if not len(tris) and not self.bodies:
+            return None
+
+        def factor(es, P):
+            f = None
+            if len(tris):
+                f = self.ctx.memo("meshvis", (es.points_mm, P, tris),
+                                  lambda: visibility_matrix(es.points_mm, P, tris), limit=64)
+            others = [b for owner, b in self.bodies
+                      if owner.startswith("lamp:") and owner != f"lamp:{es.lamp_id}"]
+            if others:
+                def compute():
+                    M, N = len(P), len(es.points_mm)
+                    A = np.broadcast_to(es.points_mm[None, :, :], (M, N, 3)).reshape(-1, 3)
+                    B = np.broadcast_to(P[:, None, :], (M, N, 3)).reshape(-1, 3)
+                    return (~bodies_block(A, B, others)).reshape(M, N).astype(float)
+
+                fb = self.ctx.memo(f"bodyvis:{es.lamp_id}", (es.points_mm, P, self._body_digest), compute,
+                                   limit=64)
+                f = fb if f is None else f * fb
+            return f
+
+        return factor
+
+    def _gather_past_bodies(self, P_rx, G) -> np.ndarray | None:
+        """(M, P) fraction of each patch a receiver sees past the bodies (where ``G`` > 0):
+        ``GATHER_SUB``² low-discrepancy points of the patch, tested only for pairs whose
+        segment to the patch may meet a body (:func:`swept_pairs_near_body`; others: seen
+        whole); a pair seen partly (a tube across the patch) is sampled again with
+        ``GATHER_FINE``² points, as the meshes' gather is (the BYK's two tube legs in front
+        of its cavity's aperture: 36 points left a ±2 % ripple from row to row of the grid).
+        With meshes, the fraction of the part the meshes leave visible (the two factors
+        multiply in :meth:`terms`)."""
+        if not self.bodies:
+            return None
+        polys = self.patches.polys
+        nrm = self.patches.normals
+
+        def compute():
+            rows, cols = np.nonzero(G > 0)
+            c = self.patches.centres + NUDGE_MM * nrm
+            hd = _half_diagonals(polys)
+            n_sub, n_fine = GATHER_SUB ** 2, GATHER_FINE ** 2
+            # the R2 points are a sequence: the first n_sub of the fine set are the coarse set
+            pts, w_fine = quad_r2_points(polys, n_fine)
+            pts = pts + NUDGE_MM * nrm[:, None, :]
+            w_sub = quad_r2_points(polys, n_sub)[1]
+            # per body, only pairs whose centre line passes it closer than the patch's half
+            # diagonal (plus the body's own bounding radius for a plate) can be partly hidden
+            bl = [b for _, b in self.bodies]
+            nears = pairs_near_bodies(bl, P_rx[rows], c[cols], np.zeros(rows.size), hd[cols])
+            hid = np.zeros((rows.size, n_fine), bool)
+            tested = np.zeros(rows.size, bool)
+
+            def test(first, count, select):
+                for b, near in zip(bl, nears):
+                    k = near[select[near]] if near.size else near
+                    if not k.size:
+                        continue
+                    tested[k] = True
+                    h = bodies_block(np.repeat(P_rx[rows[k]], count, axis=0),
+                                     pts[cols[k], first:first + count].reshape(-1, 3), [b])
+                    hid[k, first:first + count] |= h.reshape(-1, count)
+
+            test(0, n_sub, np.ones(rows.size, bool))
+            coarse = hid[:, :n_sub]
+            part = tested & coarse.any(axis=1) & ~coarse.all(axis=1)
+            test(n_sub, n_fine - n_sub, part)
+            k = np.nonzero(tested & hid.any(axis=1))[0]
+            n_pts = np.where(part[k], n_fine, n_sub)
+            w = np.where(part[k][:, None], w_fine[cols[k]],
+                         np.c_[w_sub[cols[k]], np.zeros((k.size, n_fine - n_sub))])
+            seen = np.ones((k.size, n_fine), bool)
+            tris = self.blockers
+            if len(tris) and k.size:
+                # the receiver's view of the patch is also cut by the meshes
+                # (_gather_visibility): what a body hides counts only where the meshes do not
+                # hide it already (an aperture plate on a cavity's face would otherwise hide
+                # the cavity twice)
+                for nn in (n_sub, n_fine):
+                    sel = np.nonzero(n_pts == nn)[0]
+                    if sel.size:
+                        seen[sel, :nn] = ~_hidden_points(P_rx, pts, rows[k[sel]], cols[k[sel]], 0, nn, tris)
+            den = (seen * w).sum(axis=1)
+            num = ((seen & ~hid[k]) * w).sum(axis=1)
+            V = np.ones(G.shape)
+            V[rows[k], cols[k]] = np.where(den > 0, num / np.where(den > 0, den, 1.0), 1.0)
+            return V
+
+        return self.ctx.memo("bodyvis_rx", (P_rx, G > 0, polys, self._body_digest, self.blockers),
+                             lambda: cached_array("gather_past_bodies", (P_rx, G > 0, polys, self.blockers),
+                                                  self._body_sig + (GATHER_SUB, GATHER_FINE, NUDGE_MM),
+                                                  compute, shape=G.shape), limit=32)
+
+    def _gather_visibility(self, P_rx, G) -> np.ndarray | None:
+        """(M, P) fraction of each patch a receiver sees past the meshes (where ``G`` > 0).
+
+        ``GATHER_SUB``² low-discrepancy points per patch first; a (receiver, patch) pair
+        seen partly (some points hidden, some not: a patch seen through an aperture's
+        edge) is sampled again with ``GATHER_FINE``² points, since the light a receiver
+        gets from a cavity comes through such partial views.
+        """
+        if not len(self.blockers):
+            return None
+        tris = self.blockers
+        polys = self.patches.polys
+        nrm = self.patches.normals
+        seen = G > 0
+        n_sub, n_fine = GATHER_SUB ** 2, GATHER_FINE ** 2
+
+        def compute():
+            faces = coplanar_convex_faces(tris)
+            # the R2 points are a sequence: the first n_sub of the fine set are the coarse set,
+            # so the fine pass tests only the points it adds
+            pts_all, w_fine = quad_r2_points(polys, n_fine)
+            pts_all = pts_all + NUDGE_MM * nrm[:, None, :]
+            w_sub = quad_r2_points(polys, n_sub)[1]
+            V = np.ones(G.shape)
+            rows, cols = np.nonzero(seen)
+            quads = polys + NUDGE_MM * nrm[:, None, :]
+            # 1. pairs whose pyramid (receiver + patch) misses every mesh's hull: seen whole
+            clear = np.ones(rows.size, bool)
+            for hull in self.hulls:
+                clear &= pyramids_clear_of(P_rx[rows], quads[cols], hull)
+            rows, cols = rows[~clear], cols[~clear]
+            # 2. pairs whose four corners one convex face hides: hidden whole (what a convex
+            #    face hides from a point is convex)
+            dark = np.zeros(rows.size, bool)
+            for f in faces:
+                h = np.ones(rows.size, bool)
+                for q in range(4):
+                    live = np.nonzero(h)[0]
+                    h[live] = segments_blocked_by_polygon(P_rx[rows[live]], quads[cols[live], q], f)
+                dark |= h
+            V[rows[dark], cols[dark]] = 0.0
+            rows, cols = rows[~dark], cols[~dark]
+            # 3. the rest point by point; pairs seen partly get the fine set
+            hid = _hidden_points(P_rx, pts_all, rows, cols, 0, n_sub, tris)
+            V[rows, cols] = ((~hid) * w_sub[cols]).sum(axis=1)
+            part = hid.any(axis=1) & ~hid.all(axis=1)
+            if part.any():
+                r, c = rows[part], cols[part]
+                more = _hidden_points(P_rx, pts_all, r, c, n_sub, n_fine - n_sub, tris)
+                V[r, c] = ((~np.c_[hid[part], more]) * w_fine[c]).sum(axis=1)
+            return V
+
+        def on_disk():
+            return cached_array("gather_visibility", (P_rx, seen, polys, nrm, tris),
+                                (GATHER_SUB, GATHER_FINE, NUDGE_MM), compute,
+                                shape=seen.shape)
+
+        return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), on_disk,
+                             limit=32)
+
+    def _first_order(self):
+        """First-order light on the patches, once per model (parameters fixed), and shared by
+        models whose lamp light is the same: a fit that moves only a meter's response, or
+        repeats a point, reuses it (keyed by the parameters of every effect that changes
+        lamp light, the lamp overrides and the lighting)."""
+        if self._terms is None:
+            tm = self._transport_model()
+            lamp_light = {eid: p for eid, p in tm.effects.items() if _changes_lamp_light(eid)}
+            k = (self._patch_key, self._body_sig, tm.lighting,
+                 json.dumps(lamp_light, sort_keys=True, default=str),
+                 json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str))
+            store = self.ctx.cache.setdefault("_rad_first", {})
+            hit = store.get(k)
+            if hit is None:
+                hit = self._first_order_at_patches()
+                if len(store) >= 16:
+                    store.pop(next(iter(store)))
+                store[k] = hit
+            self._terms, self._E0 = hit
+        return self._terms, self._E0
+
+    def _band_classes(self):
+        """Bands whose reflectances (and plate transmittance) coincide share one solve:
+        ``(unique rows (U, P[+1]), band → row index (B,), cache key)``."""
+        from .forward import array_key
+
+        ck = self._rho_key + ("classes", None if self.plate_T is None else array_key(self.plate_T))
+        hit = self.ctx.cache.get(ck)
+        if hit is None:        # np.unique over (B, P) rows: ~20 ms, once per reflectance set
+            sig = self.rho.T if self.plate_T is None else np.c_[self.rho.T, self.plate_T]
+            uniq, inv = np.unique(np.round(sig, 9), axis=0, return_inverse=True)
+            # the patches (with the occluders that cut them) and the bodies that shape F
+            hit = self.ctx.cache[ck] = (uniq, inv.ravel(),
+                                        (self._rho_key, self._body_digest.tobytes(), self.p.max_bounces,
+                                         array_key(uniq)))
+        return hit
+
+    def _neumann_terms(self, u) -> int | None:
+        """Jacobi sweeps for a 1e-9 relative residual when the series converges fast, else None."""
+        P = len(self.patches)
+        r = u[:P]
+        q = float(np.max(r * self.F.sum(axis=1)))        # bound on the spectral radius of ρF
+        if self.p.max_bounces > 0:
+            return self.p.max_bounces - 1
+        if q >= 1:
+            return None
+        return int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12))))
+
+    def _lu(self, key, j, u):
+        from scipy.linalg import lu_factor
+
+        store = self.ctx.cache.setdefault("_rad_lu", {})
+        k = key + (j,)
+        if k not in store:
+            P = len(self.patches)
+            r = u[:P]
+            Fu = self._F_band(u[P] if u.size > P else None)
+            if len(store) >= 64:
+                store.pop(next(iter(store)))
+            store[k] = lu_factor(np.eye(P) - r[:, None] * Fu)
+        return store[k]
+
+    def _solve(self):
+        """Patch radiosity B (bands, patches, terms): for :meth:`patch_radiosity`."""
+        if self._B is not None:
+            return
+        from scipy.linalg import lu_solve
+
+        terms, E0 = self._first_order()
+        uniq, inv, key = self._band_classes()
+        P = len(self.patches)
+        sol = []
+        for j, u in enumerate(uniq):
+            r = u[:P]
+            n_it = self._neumann_terms(u)
+            if n_it is not None and (self.p.max_bounces > 0 or n_it * E0.shape[1] < P / 3):
+                Fu = self._F_band(u[P] if u.size > P else None)
+                x = r[:, None] * E0
+                acc = x.copy()
+                for _ in range(n_it):
+                    x = r[:, None] * (Fu @ x)
+                    acc += x
+                sol.append(acc)
+            else:
+                sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
+        self._B = np.stack([sol[i] for i in inv])
+
+    def _F_band(self, T):
+        if T is None or self.cross_pp is None:
+            return self.F
+        return np.where(self.cross_pp, self.F * T, self.F)
+
+    # ------------------------------------------------------------------ receivers
+    def patch_radiosity(self) -> np.ndarray:
+        """(B, P, K) radiosity per band, patch and first-order term (W·m⁻² per unit spectrum)."""
+        self._solve()
+        return self._B
+
+    def _receiver_operators(self, G, P_rx) -> np.ndarray:
+        """(B, M, P) operators R_b = G_b·(I − ρ_b F_b)⁻¹·diag(ρ_b): patch first-order light →
+        inter-reflected light at the receivers.
+
+        They depend on geometry, reflectances and the receivers only, not on the lamps or any
+        lamp parameter, so a fit that varies intensities, σ, apertures… reuses them and each
+        evaluation is a few small matrix products (the solve is done once, transposed, with
+        the receivers as right-hand sides).
+        """
+        from scipy.linalg import lu_solve
+
+        from .forward import array_key
+
+        uniq, inv, key = self._band_classes()
+        ck = key + (array_key(G, P_rx),)
+        store = self.ctx.cache.setdefault("_rad_ops", {})
+        hit = store.get(ck)
+        if hit is not None:
+            return hit
+        Pn = len(self.patches)
+        if self.plate_T is not None:
+            from .geometry import segment_hits_rectangle
+
+            cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
+        ops = []
+        for j, u in enumerate(uniq):
+            r = u[:Pn]
+            Gj = G if self.plate_T is None else np.where(cross, G * u[Pn], G)
+            n_it = self._neumann_terms(u)
+            if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
+                A = r[:, None] * self._F_band(u[Pn] if u.size > Pn else None)
+                y = Gj
+                acc = y * r[None, :]
+                for _ in range(n_it):
+                    y = y @ A
+                    acc += y * r[None, :]
+                ops.append(acc)
+            else:
+                x = lu_solve(self._lu(key, j, u), Gj.T, trans=1)        # (I − ρF)⁻ᵀ Gᵀ
+                ops.append((r[:, None] * x).T)
+        out = np.stack([ops[i] for i in inv])
+        if len(store) >= 32:
+            store.pop(next(iter(store)))
+        store[ck] = out
+        return out
+
+    def terms(self, P, N, meter):
+        from .forward import Term
+
+        terms, E0 = self._first_order()
+        G = self.model.lambertian_gather(self.patches.polys, self.patches.normals, P, N, meter)
+        V = self._gather_visibility(P, G)
+        if V is not None:
+            G = G * V
+        Vb = self._gather_past_bodies(P, G)
+        if Vb is not None:
+            G = G * Vb
+        R = self._receiver_operators(G, P)
+        ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
+        return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
+                     "indirect") for k, t in enumerate(terms)]

@@ -1,0 +1,911 @@
+"""
+Name the physical effect the model is missing.
+
+For every registered effect the booth does not enable (and whose booth
+elements exist: a diffuser needs ``diffuser:``, an aperture ``occluders:``…),
+refit with the effect added and its ``fit_parameters`` free, on top of the
+base fit (the booth's free parameters plus the parameters of the effects it
+already enables).  Each suspect gets
+
+* ``rmse_percent_after``: illuminance RMSE (%) after the refit;
+* ``score``: the drop of the Bayesian information criterion
+  BIC = χ² + k·ln n (χ² in units of the measurement noise, k the number of
+  free parameters): positive = better even after paying for the extra
+  parameters;
+* ``structure_after``: Moran's I of the residuals (nearest-neighbour
+  weights): spatially organised residuals are a sign of missing physics.
+
+The enabled effects' parameters are refitted with each candidate (an earlier
+round's estimate may be biased by the effect still missing), except those the
+data cannot pin down (standard error over a quarter of their range): those
+are held at the booth's values, since refitting them cannot change a score.
+
+Verdict:
+
+``none``
+    the base residual is already at the noise level (χ²/dof within 3σ of 1):
+    nothing is invented.
+``missing:<id>``
+    one suspect beats every other by more than :data:`TIE_MARGIN` BIC units
+    and the base by more than :data:`SIGNIFICANT`.
+``ambiguous:<id>,<id>…``
+    several suspects explain the data within :data:`TIE_MARGIN` of the best:
+    the layout cannot tell them apart — plan more points
+    (:mod:`lbscene.engine.loop.plan`) or declare the lamp output known.
+``unexplained``
+    no suspect helps significantly: the report says where it fails.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from itertools import combinations
+from typing import Literal
+
+import numpy as np
+
+from .fit import FitProblem, FitResult, effect_parameter
+from .hypotheses import HYPOTHESES, applicable_hypotheses
+
+__all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
+           "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
+           "noise_model"]
+
+#: prefix of a hypothesis (hardware the booth does not declare) among the diagnosis' candidates
+HYPOTHESIS_PREFIX = "hypothesis:"
+#: forward-model cache stores keyed by the content of their geometry, shared by the refits of
+#: augmented booths (hypotheses) with the booth's own
+SHARED_GEOMETRY_STORES = ("_pairs", ("_memo", "hit"))
+#: BIC improvement a suspect needs to count at all (strong evidence on Kass–Raftery's scale).
+SIGNIFICANT = 10.0
+#: Suspects within this many BIC units of the best are tied.
+TIE_MARGIN = 10.0
+#: When no single effect reaches the noise, pairs of the best this-many suspects are refitted together.
+PAIR_CANDIDATES = 4
+#: Resamples of the linearised parametric bootstrap behind a verdict's recurrence.
+BOOTSTRAP_SAMPLES = 2000
+#: χ²/dof consistency with noise: within this many standard deviations of 1.
+NOISE_Z = 3.0
+#: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
+#: margins; 1e-8 made weakly identified candidates (tube-end falloff: level and length) crawl
+#: along their valley for 400+ evaluations without changing the score.
+SCORING_TOLERANCE = 1e-4
+
+
+@dataclass
+class NoiseModel:
+    """The noise the fit uses and where it came from.
+
+    ``percent`` is the total σ of one reading: the meter's ``meter_percent`` and the declared
+    model uncertainty ``model_percent`` added in quadrature, σ² = σ_meter² + σ_model².
+    """
+
+    percent: float
+    estimate_percent: float | None
+    declared_percent: float | None
+    spectral_percent: float
+    source: str
+    meter_percent: float = 0.0
+    model_percent: float = 0.0
+
+    def model_share(self, rmse_percent: float) -> float | None:
+        """Fraction of the residual's variance the declared model uncertainty covers (0–1)."""
+        if not self.model_percent or rmse_percent <= 0:
+            return None
+        return min(1.0, self.model_percent ** 2 / rmse_percent ** 2)
+
+
+def noise_model(meas) -> NoiseModel:
+    from .fit import DEFAULT_NOISE_PERCENT, DEFAULT_SPECTRAL_NOISE_PERCENT, estimate_noise_percent
+
+    est = estimate_noise_percent(meas.illuminance)
+    dec = meas.declared_noise_percent
+    if dec is not None:
+        pct, src = dec, "declared instrument repeatability"
+    elif est is not None:
+        # never trust a noise estimate far below a good meter's repeatability
+        pct, src = max(est, 0.2), "estimated from the data (smooth-surface residual)"
+    else:
+        pct, src = DEFAULT_NOISE_PERCENT, "default (too few points to estimate)"
+    u = float(getattr(meas, "model_uncertainty_percent", 0.0) or 0.0)
+    total = math.hypot(pct, u)
+    if u:
+        src += f" ⊕ declared model uncertainty {u:g} %"
+    return NoiseModel(total, est, dec, meas.spectral_noise_percent or DEFAULT_SPECTRAL_NOISE_PERCENT, src,
+                      meter_percent=pct, model_percent=u)
+
+
+def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: float | None = None,
+                          spectral_noise_percent: float | None = None, level_test: bool = False) -> bool:
+    """Residuals consistent with the noise.
+
+    Each data block (illuminance readings, white-tile bands) on its own:
+    χ²/dof within ``z`` standard deviations of 1.  With ``level_test`` (lamp
+    output declared known) also the mean illuminance residual must be within
+    ``z`` standard errors of 0 — a level mismatch of a fraction of the noise
+    is invisible in χ² but certain in the mean of 55 readings.
+    """
+    dof = fit.dof
+    if fit.chi2 / dof > 1.0 + z * math.sqrt(2.0 / dof):
+        return False
+    k = fit.n_params
+    if noise_percent:
+        r = fit.residual_percent / noise_percent
+        if r.size:
+            d = max(r.size - k, 1)
+            if float(r @ r) / d > 1.0 + z * math.sqrt(2.0 / d):
+                return False
+            if level_test and abs(r.mean()) * math.sqrt(r.size) > z:
+                return False
+    if spectral_noise_percent:
+        s = fit.spectral_residual_percent
+        if s is not None:
+            s = s[np.isfinite(s)] / spectral_noise_percent
+            if s.size > 2:
+                d = max(s.size - 1, 1)
+                if float(s @ s) / d > 1.0 + z * math.sqrt(2.0 / d):
+                    return False
+    return True
+
+
+def moran_i(points: np.ndarray, r: np.ndarray, k: int = 4) -> float:
+    """Moran's I of residuals with k-nearest-neighbour weights (0: no spatial structure)."""
+    n = len(r)
+    if n < k + 2:
+        return float("nan")
+    d = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    nb = np.argsort(d, axis=1)[:, :k]
+    z = r - r.mean()
+    den = float(z @ z)
+    if den <= 0:
+        return 0.0
+    num = float(sum(z[i] * z[nb[i]].sum() for i in range(n)))
+    return (n / (n * k)) * num / den
+
+
+@dataclass
+class Suspect:
+    effect: str
+    rmse_percent_after: float
+    score: float
+    chi2: float
+    n_params: int
+    explains: bool
+    structure_after: float
+    params: dict
+    fit: FitResult | None = None
+    spectral_rmse_after: float | None = None
+    #: the effects this explanation adds (one, or two for a pair) and their fitted parameters
+    effects: tuple[str, ...] = ()
+    params_by_effect: dict = field(default_factory=dict)
+    #: what was refitted: effect ids, or ``hypothesis:<id>`` for hardware the booth lacks
+    items: tuple[str, ...] = ()
+    #: χ² gained on the illuminance readings and on the white-tile spectrum
+    channel_gain: tuple[float, float] = (0.0, 0.0)
+    #: why the explanation may not be chosen (it gains only on the other channel); '' if it may
+    not_eligible: str = ""
+    #: hypothesis id → booth YAML of the hardware it adds, fitted
+    hardware: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.effects:
+            self.effects = tuple(self.effect.split("+"))
+        if not self.params_by_effect and len(self.effects) == 1:
+            self.params_by_effect = {self.effects[0]: dict(self.params)}
+        if not self.items:
+            self.items = tuple(self.effects)
+
+    def to_json(self) -> dict:
+        return {"effect": self.effect, "effects": list(self.effects), "rmse_percent_after": round(self.rmse_percent_after, 4),
+                "score": round(self.score, 3), "chi2": round(self.chi2, 3), "n_params": self.n_params,
+                "explains_to_noise": self.explains, "structure_after": _r(self.structure_after),
+                "spectral_rmse_percent_after": _r(self.spectral_rmse_after),
+                "fitted_params": {k: _r(v, 6) for k, v in self.params.items()},
+                "hypotheses": [i[len(HYPOTHESIS_PREFIX):] for i in self.items if i.startswith(HYPOTHESIS_PREFIX)],
+                "hardware_yaml": self.hardware or None,
+                "chi2_gain_illuminance": _r(self.channel_gain[0], 2),
+                "chi2_gain_spectrum": _r(self.channel_gain[1], 2),
+                "not_eligible": self.not_eligible or None}
+
+
+def _r(x, nd=4):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return None
+    return round(float(x), nd)
+
+
+VerdictKind = Literal["none", "missing", "ambiguous", "unexplained"]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the diagnosis concludes, as a value (not a string to parse).
+
+    ``kind``
+        ``none``: the residual is at the noise and nothing improves it significantly;
+        ``missing``: adding ``effects`` (one, or two together) brings the residual to the noise
+        and beats every other explanation by :data:`TIE_MARGIN` BIC units;
+        ``ambiguous``: several explanations (``alternatives``, each a tuple of effects) reach
+        the noise within :data:`TIE_MARGIN` of each other;
+        ``unexplained``: no single effect nor pair reaches the noise; ``partial`` is the best
+        partial explanation, if one helps significantly.
+
+    ``str(verdict)`` is the short form the command line prints and the JSON carries:
+    ``none``, ``missing:a``, ``missing:a+b``, ``ambiguous:a,b+c``, ``unexplained``.
+    """
+
+    kind: VerdictKind
+    effects: tuple[str, ...] = ()
+    alternatives: tuple[tuple[str, ...], ...] = ()
+    partial: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        if self.kind == "missing":
+            return "missing:" + "+".join(self.effects)
+        if self.kind == "ambiguous":
+            return "ambiguous:" + ",".join("+".join(a) for a in self.alternatives)
+        return self.kind
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, str):
+            return str(self) == other
+        if isinstance(other, Verdict):
+            return (self.kind, self.effects, self.alternatives, self.partial) == \
+                (other.kind, other.effects, other.alternatives, other.partial)
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(str(self))
+
+    @property
+    def tied(self) -> list[str]:
+        """Effects named by an ambiguous verdict (each alternative's effects, in order)."""
+        return [e for a in self.alternatives for e in a]
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "effects": list(self.effects),
+                "alternatives": [list(a) for a in self.alternatives], "partial": list(self.partial),
+                "text": str(self)}
+
+
+@dataclass
+class Confidence:
+    """How firmly the data support the verdict.
+
+    ``delta_bic_vs_base``: BIC units the verdict's explanation gains over the booth as it is;
+    ``delta_bic_vs_next``: its lead over the next explanation; ``recurrence``: the fraction of
+    data sets, resampled from the verdict's own model with the measured noise, on which the
+    same verdict comes back (linearised parametric bootstrap: each explanation's predictions
+    held at its fit, :data:`BOOTSTRAP_SAMPLES` resamples).
+    """
+
+    delta_bic_vs_base: float | None
+    delta_bic_vs_next: float | None
+    recurrence: float | None
+    samples: int = 0
+
+    def to_json(self) -> dict:
+        return {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
+                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples}
+
+
+@dataclass
+class Diagnosis:
+    verdict: Verdict
+    base: FitResult
+    suspects: list[Suspect]
+    skipped: dict[str, str]
+    noise: NoiseModel
+    tied: list[str] = field(default_factory=list)
+    explanation: list[str] = field(default_factory=list)
+    snippet: str | None = None
+    where: list[dict] = field(default_factory=list)
+    structure_before: float = float("nan")
+    consistent: bool = False
+    #: enabled effects' parameters refitted with every candidate, and those held at the booth's
+    #: values because these data cannot pin them (see _pinned_by_data)
+    refitted: list[str] = field(default_factory=list)
+    held: list[str] = field(default_factory=list)
+    #: refits with two effects together (when no single one reaches the noise)
+    pairs: list[Suspect] = field(default_factory=list)
+    confidence: Confidence | None = None
+
+    def to_json(self) -> dict:
+        return {"verdict": str(self.verdict),
+                "verdict_detail": self.verdict.to_json(),
+                "confidence": self.confidence.to_json() if self.confidence else None,
+                "pairs": [p.to_json() for p in self.pairs],
+                "suspects": [s.to_json() for s in self.suspects],
+                "not_tested": self.skipped,
+                "tied": self.tied,
+                "explanation": self.explanation,
+                "snippet": self.snippet,
+                "where_it_fails": self.where,
+                "base_chi2_per_dof": round(self.base.chi2 / self.base.dof, 4),
+                "structure_before": _r(self.structure_before),
+                "base_consistent_with_noise": self.consistent,
+                "joint_parameters_refitted": self.refitted,
+                "joint_parameters_held": self.held}
+
+
+# --------------------------------------------------------------------------- snippets
+
+def _fmt(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    if v is None:
+        return "null"
+    return str(v)
+
+
+def effects_snippet(effects: dict, highlight: str | set | None = None) -> str:
+    """The ``effects:`` block to paste into the booth file (non-default parameters only)."""
+    from lbscene.engine.light.effects.registry import get_effect
+
+    marked = {highlight} if isinstance(highlight, str) else set(highlight or ())
+    lines = ["effects:"]
+    for eid in sorted(effects):
+        cls = get_effect(eid)
+        defaults = cls.Params().model_dump(mode="json")
+        params = {k: v for k, v in (effects[eid] or {}).items()
+                  if k in defaults and (defaults[k] != v or (eid in marked and k in getattr(
+                      cls, "fit_parameters", {})))}
+        body = ", ".join(f"{k}: {_fmt(v)}" for k, v in params.items())
+        mark = "   # ← add" if eid in marked else ""
+        lines.append(f"  {eid}: {{{body}}}{mark}")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- diagnosis
+
+#: Enabled effects' parameters are refitted jointly with each candidate only when changing one
+#: costs less than this per forward evaluation (seconds, from the effect's ``refit_cost_s`` model).
+MAX_JOINT_REFIT_COST_S = 0.15
+
+
+def _enabled_fit_params(ir, lighting, effects, already) -> list:
+    """Fit parameters of the effects the booth already enables (refitted with each candidate, so
+    an earlier round's estimate is not frozen while it was biased by the effect still missing)."""
+    from lbscene.engine.light.effects.registry import get_effect
+
+    out = []
+    names = {fp.target for fp in already}
+    for eid in effects:
+        cls = get_effect(eid)
+        cost = getattr(cls, "refit_cost_s", None)
+        if cost is not None and cost(ir, effects.get(eid)) > MAX_JOINT_REFIT_COST_S:
+            continue  # e.g. radiosity on a fine mesh: keep the booth's values
+        fn = getattr(cls, "fit_parameters_for", None)
+        fps = fn(ir, lighting) if fn else dict(getattr(cls, "fit_parameters", {}) or {})
+        for name, b in fps.items():
+            fp = effect_parameter(eid, name, effects, b)
+            if fp.target not in names:
+                out.append(fp)
+    return out
+
+
+#: A joint parameter is refitted only if the data pin it: its standard error at the start of the
+#: diagnosis (noise-limited, from the Jacobian) is below this fraction of its bounds' range.
+PINNED_FRACTION = 0.25
+
+
+def _pinned_by_data(meas, effects, free, joint, noise, cache) -> tuple[list, list]:
+    """Split the enabled effects' parameters into those these data pin down and those they
+    cannot (standard error ≥ :data:`PINNED_FRACTION` of the range at the current values).
+
+    A parameter the data cannot pin changes χ² by less than the noise anywhere in a wide
+    range: refitting it cannot change a suspect's score, but the optimiser wanders along it
+    (each step a new forward evaluation, e.g. new occlusion fractions for an aperture scale),
+    which made the X-Rite diagnosis take 15 s.  Those are held at the booth's values.
+    """
+    if not joint:
+        return joint, []
+    prob = FitProblem(meas, effects, list(free) + list(joint), noise.percent, noise.spectral_percent, cache)
+    x0 = np.array([prob.free[i].initial for i in prob.nl], float)
+    A, T, *_ = prob.components(x0)
+    scales = prob.scales_for(A, T)
+    r = prob.residuals(x0, scales)
+    chi2 = float(r @ r)
+    # noise-limited: a model still missing an effect fits badly, which must not hide what the
+    # data could pin
+    se, _, _ = prob._errors(x0, scales, chi2, noise_limited=True)
+    keep, held = [], []
+    for fp in joint:
+        e = se.get(fp.target, float("inf"))
+        (keep if e < PINNED_FRACTION * (fp.bounds[1] - fp.bounds[0]) else held).append(fp)
+    return keep, held
+
+
+def _coarsen(effects: dict) -> dict:
+    from lbscene.engine.light.effects.registry import get_effect
+
+    out = {}
+    for eid, p in effects.items():
+        fn = getattr(get_effect(eid), "diagnosis_params", None)
+        out[eid] = fn(p) if fn else dict(p or {})
+    return out
+
+
+def candidate_config(ir, lighting, effects, eid, base_free, known):
+    """Effects and free parameters with candidate ``eid`` added."""
+    from lbscene.engine.light.effects.registry import get_effect
+    from .fit import default_free_parameters
+
+    cls = get_effect(eid)
+    fn = getattr(cls, "fit_parameters_for", None)
+    fps = fn(ir, lighting) if fn else dict(getattr(cls, "fit_parameters", {}) or {})
+    init = dict(getattr(cls, "fit_initial", {}) or {})
+    new_eff = {k: dict(v or {}) for k, v in effects.items()}
+    params = {k: init.get(k, None) for k in fps}
+    params = {k: v for k, v in params.items() if v is not None}
+    new_eff[eid] = cls.Params.model_validate(params).model_dump(mode="json")
+    fn_d = getattr(cls, "diagnosis_params", None)
+    if fn_d:
+        new_eff[eid] = fn_d(new_eff[eid])
+    free = list(base_free)
+    names = {fp.target for fp in free}
+    for name, b in fps.items():
+        fp = effect_parameter(eid, name, new_eff, b)
+        if fp.target not in names:
+            free.append(fp)
+            names.add(fp.target)
+    # profiles declared by lamps become fittable once the profile effect is on
+    for fp in default_free_parameters(ir, lighting, new_eff, known):
+        if fp.target not in names:
+            free.append(fp)
+            names.add(fp.target)
+    return new_eff, free
+
+
+def _where(meas, fit: FitResult, n: int = 5) -> list[dict]:
+    ill = meas.illuminance
+    if ill is None or fit.lux_pred is None:
+        return []
+    r = fit.residual_percent
+    order = np.argsort(-np.abs(r))[:n]
+    labels = ill.orientation_labels()
+    return [{"x_mm": float(ill.points_mm[i, 0]), "y_mm": float(ill.points_mm[i, 1]),
+             "z_mm": float(ill.points_mm[i, 2]), "orientation": labels[i],
+             "residual_percent": round(float(r[i]), 3), "file": ill.files[i], "line": int(ill.lines[i])}
+            for i in order]
+
+
+def _trend(meas, fit: FitResult) -> list[str]:
+    ill = meas.illuminance
+    if ill is None or len(ill) < 6:
+        return []
+    r = fit.residual_percent
+    out = []
+    names = {0: "x (toward the right wall)", 1: "y (toward the rear wall)", 2: "z (height)"}
+    for ax, label in names.items():
+        x = ill.points_mm[:, ax]
+        if np.ptp(x) < 1e-6:
+            continue
+        c = float(np.corrcoef(x, r)[0, 1])
+        if abs(c) > 0.5:
+            out.append(f"the model is too {'low' if c < 0 else 'high'} toward +{label} "
+                       f"(residual correlation {c:+.2f})")
+    dist_c = np.linalg.norm(ill.points_mm[:, :2], axis=1)
+    if np.ptp(dist_c) > 1e-6:
+        c = float(np.corrcoef(dist_c, r)[0, 1])
+        if abs(c) > 0.5:
+            out.append(f"residuals grow {'positive' if c > 0 else 'negative'} away from the floor centre "
+                       f"(correlation {c:+.2f})")
+    return out
+
+
+def _chi2_parts(fit: FitResult, noise: NoiseModel) -> tuple[float, float]:
+    """χ² in noise units split by what can explain it: *levels* — the illuminance readings and the
+    white-tile spectrum's mean (light that geometry or a meter moves) — and the white-tile
+    spectrum's *shape* (its relative residual less its mean: only spectra change it)."""
+    r = fit.residual_percent / noise.percent if fit.lux_pred is not None else np.zeros(0)
+    sp = fit.spectral_residual_percent
+    sp = np.zeros(0) if sp is None else sp[np.isfinite(sp)] / noise.spectral_percent
+    level = float(r @ r)
+    if sp.size:
+        level += sp.size * float(sp.mean()) ** 2
+        sp = sp - sp.mean()
+    return level, float(sp @ sp)
+
+
+def _channels(item: str) -> tuple[str, ...]:
+    """The residuals an explanation may claim: ``spectral`` for effects and hypotheses that change
+    spectra only, ``spatial`` for geometry; an effect lists both in its ``channels`` attribute
+    when it does both (a diffuser: a plate with a spectral transmittance)."""
+    from lbscene.engine.light.effects.registry import get_effect
+
+    if item.startswith(HYPOTHESIS_PREFIX):
+        return (HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].channel,)
+    cls = get_effect(item)
+    ch = getattr(cls, "channels", None)
+    if ch:
+        return tuple(ch)
+    return ("spectral",) if getattr(cls, "kind", "") == "spectral" else ("spatial",)
+
+
+def _channel(item: str) -> str:
+    """The first channel of :func:`_channels`."""
+    return _channels(item)[0]
+
+
+def _channel_check(items: tuple[str, ...], gain: tuple[float, float], n_params: dict,
+                   n_values: tuple[int, int]) -> str:
+    """Channel honesty: each explanation must gain on a residual it can act on — the readings'
+    levels (spatial: illuminance and the tile's mean) or the white-tile spectrum's shape
+    (spectral) — by more than :data:`SIGNIFICANT` and more than its ``k`` parameters' price on
+    that channel's ``n`` values, k·ln n (a 12-coefficient filter fitted to a 15-band spectrum's
+    noise gains about 12).  So a geometry never wins on a purely spectral residual, nor a filter
+    on a purely spatial one."""
+    out = []
+    names = {"spatial": "the readings' levels", "spectral": "the white-tile spectrum's shape"}
+    for it in items:
+        k = max(int(n_params.get(it, 1)), 1)
+        ch = _channels(it)
+
+        def need(c):
+            n = n_values[0 if c == "spatial" else 1]
+            return max(SIGNIFICANT, k * math.log(max(n, 2)))
+        if not any(gain[0 if c == "spatial" else 1] > need(c) for c in ch):
+            out.append(f"{it} gains only " + " and ".join(
+                f"{gain[0 if c == 'spatial' else 1]:.1f} χ² on {names[c]} (needs {need(c):.0f})"
+                for c in ch))
+    return "; ".join(out)
+
+
+def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = None,
+             progress=None, cache: dict | None = None) -> Diagnosis:
+    """Refit with each missing effect and rank the suspects (see the module docstring)."""
+    from lbscene.engine.light.effects.registry import available_effects
+
+    ir, lighting = meas.ir, meas.lighting
+    booth_effects = base_problem.effects
+    effects = _coarsen(booth_effects)
+    noise = noise_model(meas)
+    cache = base_problem.cache if cache is None else cache
+    joint = _enabled_fit_params(ir, lighting, effects, base_problem.free)
+    # which joint parameters are affordable is decided by each effect's analytic cost model
+    # (refit_cost_s), never by timing: the verdict must not depend on the machine's load
+    joint, held = _pinned_by_data(meas, effects, list(base_problem.free), joint, noise, cache)
+    base_free = list(base_problem.free) + joint
+    base_fp = FitProblem(meas, effects, base_free, noise.percent, noise.spectral_percent, cache,
+                         tolerance=SCORING_TOLERANCE)
+    base = base_fp.solve()
+    # every candidate refit starts from the base solution: the candidate's own parameters are the
+    # only ones far from their optimum, so the refits need a few iterations instead of dozens
+    base_free = [replace(fp, initial=float(np.clip(base.values.get(fp.target, fp.initial), *fp.bounds)))
+                 for fp in base_free]
+    n = base.n_residuals
+    logn = math.log(max(n, 2))
+    base_bic = base.chi2 + len(base_free) * logn
+    pts = meas.illuminance.points_mm if meas.illuminance is not None else np.zeros((0, 3))
+    structure_before = moran_i(pts, base.residual_percent) if len(pts) else float("nan")
+
+    registry = available_effects()
+    todo, skipped = [], {}
+    for eid, cls in registry.items():
+        if eid in effects or (candidates is not None and eid not in candidates):
+            continue
+        why = cls.applicable(ir, lighting) if hasattr(cls, "applicable") else None
+        if why:
+            skipped[eid] = why
+        else:
+            todo.append(eid)
+    # hardware the file does not declare: tried as hypotheses (engine/loop/hypotheses.py)
+    hyps, _ = applicable_hypotheses(ir, lighting)
+    for H in hyps:
+        if H.effect in effects or (candidates is not None and H.effect not in candidates
+                                   and H.id not in candidates):
+            continue
+        skipped.pop(H.effect, None)
+        todo.append(HYPOTHESIS_PREFIX + H.id)
+    ctest = dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
+                 level_test=bool(meas.known_output_groups))
+    known_all = bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ())
+    ir_caches: dict = {}
+    base_parts = _chi2_parts(base, noise)
+    n_tile = int(np.isfinite(base.spectral_residual_percent).sum()) if base.spectral_residual_percent is not None else 0
+    channel_sizes = (base_problem.n_lux + (1 if n_tile else 0), n_tile)
+
+    def refit(items: tuple[str, ...]) -> Suspect:
+        cur_ir, new_eff, free = ir, effects, base_free
+        post, hw = [], []
+        n_params: dict[str, int] = {}
+        for it in items:
+            before = len(free)
+            if it.startswith(HYPOTHESIS_PREFIX):
+                H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
+                hw.append(H)
+                if H.channel == "spectral":
+                    post.append((it, H))
+                    continue
+                cur_ir, add_eff, add_free = H.augment(cur_ir, lighting, meas.known_output_groups)
+                new_eff = {**new_eff, **add_eff}
+                names = {fp.target for fp in free}
+                free = list(free) + [fp for fp in add_free if fp.target not in names]
+            else:
+                new_eff, free = candidate_config(cur_ir, lighting, new_eff, it, free,
+                                                 meas.known_output_groups)
+            n_params[it] = len(free) - before
+        if cur_ir is ir:
+            m, c = meas, cache
+        else:
+            m = replace(meas, ir=cur_ir)
+            key = tuple(h.id for h in hw if h.channel != "spectral")
+            if key not in ir_caches:
+                # content-keyed geometry (pair geometry of emitter points and receivers, occlusion
+                # fractions of a rectangle) is the same whatever booth it came from: shared
+                ir_caches[key] = {k: cache.setdefault(k, {}) for k in SHARED_GEOMETRY_STORES}
+            c = ir_caches[key]
+        prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
+                          tolerance=SCORING_TOLERANCE)
+        starts = [st for H in hw for st in H.starts()]
+        if starts:
+            # hardware whose parameters have no gradient where the guess puts them (an opening
+            # larger than every path): start from the best of a coarse grid
+            def chi2_at(st):
+                x = np.array([st.get(prob.free[i].target, prob.free[i].initial) for i in prob.nl])
+                r = prob.residuals(x)
+                return float(r @ r)
+            best = min(starts, key=chi2_at)
+            free = [replace(fp, initial=float(best.get(fp.target, fp.initial))) for fp in free]
+            prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
+                              tolerance=SCORING_TOLERANCE)
+        fit = prob.solve()
+        if cur_ir is not ir:
+            fit.ir = cur_ir          # the booth this explanation predicts with (plan)
+        k = len(free)
+        for it, H in post:
+            f2 = H.fit_on(prob, fit, known_all)
+            if f2 is None:
+                return None
+            n_params[it] = sum(1 for fp in f2.free if not fp.linear)
+            k += n_params[it]
+            fit = f2
+        bic = fit.chi2 + k * logn
+        eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
+                     else i for i in items)
+        by_effect = {}
+        for it, eid in zip(items, eids):
+            if it.startswith(HYPOTHESIS_PREFIX):
+                by_effect[eid] = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]].effect_entry(fit)
+            else:
+                by_effect[eid] = {fp.name: fit.values[fp.target] for fp in free
+                                  if fp.scope == "effect" and fp.ident == eid}
+        shown = {}
+        for it, eid in zip(items, eids):
+            if it.startswith(HYPOTHESIS_PREFIX):
+                shown.update({t.split(".", 1)[1]: v for t, v in fit.values.items()
+                              if t.startswith(f"effect.{eid}.") or t.startswith("hypothesis.")})
+            else:
+                shown.update({f"{eid}.{k_}": v for k_, v in by_effect[eid].items()})
+        if len(items) == 1 and not hw:
+            shown = by_effect[eids[0]]
+        parts = _chi2_parts(fit, noise)
+        gain = (base_parts[0] - parts[0], base_parts[1] - parts[1])
+        why_not = _channel_check(items, gain, n_params, channel_sizes)
+        return Suspect(
+            effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
+            n_params=k - len(base_free), explains=consistent_with_noise(fit, **ctest),
+            structure_after=moran_i(pts, fit.residual_percent) if len(pts) else float("nan"),
+            params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
+            params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
+            hardware={H.id: H.hardware_yaml(cur_ir, fit) for H in hw})
+
+    # hardware the file does not declare is hypothesised only when the booth as declared leaves
+    # something to explain: its residual above the noise, or a catalog effect that helps
+    consistent = consistent_with_noise(base, **ctest)
+    suspects = []
+    for k, item in enumerate(todo):
+        if item.startswith(HYPOTHESIS_PREFIX) and consistent and not any(
+                x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
+            continue
+        if progress:
+            progress(k, len(todo), item)
+        s_ = refit((item,))
+        if s_ is not None:
+            suspects.append(s_)
+    suspects.sort(key=lambda s: -s.score)
+    pairs: list[Suspect] = []
+    eligible = [x for x in suspects if not x.not_eligible]
+    helpful = [x for x in eligible if x.score > SIGNIFICANT]
+    if not any(x.explains for x in helpful) and not (consistent and not helpful):
+        # no single effect reaches the noise: two together might (search the best few suspects)
+        top = [x.items[0] for x in (helpful or eligible)[:PAIR_CANDIDATES]]
+        # and the candidate that explains most of each channel on its own, whatever its total
+        # score: a filter with an unexplained geometry beside it worsens the readings' level
+        for ch, i in (("spatial", 0), ("spectral", 1)):
+            own = [x for x in suspects if _channel(x.items[0]) == ch and x.channel_gain[i] > SIGNIFICANT]
+            if own:
+                best_ch = max(own, key=lambda x: x.channel_gain[i]).items[0]
+                if best_ch not in top:
+                    top.append(best_ch)
+        combos = list(combinations(top, 2))
+        for k, (a, b) in enumerate(combos):
+            if progress:
+                progress(len(todo) + k, len(todo) + len(combos), f"{a}+{b}")
+            p_ = refit((a, b))
+            if p_ is not None:
+                pairs.append(p_)
+        pairs.sort(key=lambda x: -x.score)
+    if progress:
+        progress(1, 1, "")
+
+    d = Diagnosis(Verdict("none"), base, suspects, skipped, noise, structure_before=structure_before,
+                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
+    d.consistent = consistent
+    d.where = _where(meas, base)
+    d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects if not x.not_eligible],
+                        [(x.effects, x.score, x.explains) for x in pairs if not x.not_eligible])
+    d.confidence = _confidence(d, base_bic, noise)
+    _explain(d, meas, booth_effects, noise)
+    return d
+
+
+def _decide(base_explains: bool, singles, pairs) -> Verdict:
+    """The verdict from scored explanations: ``(effects, ΔBIC vs the booth as is, reaches the
+    noise?)`` for each single effect and each pair (see :class:`Verdict`).  The same rule scores
+    the data and every bootstrap resample."""
+    helpful = [h for h in singles if h[1] > SIGNIFICANT]
+    if base_explains and not helpful:
+        return Verdict("none")
+
+    def pick(cands, reach):
+        best = max(reach, key=lambda h: h[1])
+        # a rival within the tie margin counts if it is significant or reaches the noise too: a
+        # best at ΔBIC 14 does not beat one at 9 that explains the data as well
+        tied = sorted((h for h in cands if h[1] >= best[1] - TIE_MARGIN and (h[2] or h[1] > SIGNIFICANT)),
+                      key=lambda h: -h[1])
+        if len(tied) == 1:
+            return Verdict("missing", best[0])
+        return Verdict("ambiguous", alternatives=tuple(h[0] for h in tied))
+
+    reach = [h for h in helpful if h[2]]
+    if reach:
+        return pick(singles, reach)
+    best_single = max((h[1] for h in helpful), default=0.0)
+    # a pair counts only if its second effect matters: it must beat the best single effect too
+    good_pairs = [h for h in pairs if h[1] > SIGNIFICANT and h[1] > best_single + SIGNIFICANT]
+    reach = [h for h in good_pairs if h[2]]
+    if reach:
+        return pick(good_pairs, reach)
+    partial = max(helpful + good_pairs, key=lambda h: h[1], default=None)
+    return Verdict("unexplained", partial=partial[0] if partial else ())
+
+
+def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidence:
+    """ΔBIC margins and the recurrence of the verdict under resampled noise.
+
+    Linearised parametric bootstrap: data are redrawn from the verdict's own model with the
+    meter noise, y* = ŷ_W + σ·ε; an explanation k's χ² then moves from its fitted value by
+    2·d_k·ε (d_k: its predictions minus the verdict's, in noise units — the refit is taken as
+    fixed, which is exact to first order), and the verdict's own χ² is drawn from χ²_dof.  The
+    same decision rule (:func:`_decide`) is applied to each resample.
+    """
+    v = d.verdict
+    hyps = [x for x in d.suspects + d.pairs if not x.not_eligible]
+    by_name = {x.effects: x for x in hyps}
+    winner = by_name.get(v.effects) if v.kind == "missing" else (
+        by_name.get(v.alternatives[0]) if v.kind == "ambiguous" else (
+            by_name.get(v.partial) if v.kind == "unexplained" and v.partial else None))
+    wfit = winner.fit if winner is not None else d.base
+    w_score = winner.score if winner is not None else 0.0
+    others = sorted((x.score for x in hyps if x is not winner), reverse=True)
+    if winner is not None:
+        others.append(0.0)          # the booth as it is
+    vs_next = (w_score - others[0]) if others else None
+    if wfit.lux_pred is None or noise.percent <= 0:
+        return Confidence(w_score if winner else None, vs_next, None)
+    z_w = wfit.residual_percent / noise.percent
+    rng = np.random.default_rng(20261123)
+    n = len(z_w)
+    eps = rng.standard_normal((BOOTSTRAP_SAMPLES, n))
+    dof_w = max(wfit.dof, 1)
+    chi2_w = rng.chisquare(dof_w, BOOTSTRAP_SAMPLES)
+    limit = dof_w * (1.0 + NOISE_Z * math.sqrt(2.0 / dof_w))
+
+    def moved(fit, chi2):
+        dk = fit.residual_percent / noise.percent - z_w
+        return chi2 + 2.0 * (eps @ dk)
+
+    base_chi2 = moved(d.base, d.base.chi2) if winner is not None else chi2_w
+    base_limit = max(d.base.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(d.base.dof, 1)))
+    rows = []
+    for x in hyps:
+        c = chi2_w if x is winner else moved(x.fit, x.chi2)
+        lim = limit if x is winner else max(x.fit.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(x.fit.dof, 1)))
+        # score = base BIC − BIC: the parameter penalties are those of the fits
+        pen = x.chi2 - x.score - d.base.chi2       # (k_x − k_base)·ln n
+        rows.append((x, c, c <= lim, pen))
+    same = 0
+    for b in range(BOOTSTRAP_SAMPLES):
+        bc = base_chi2[b] if np.ndim(base_chi2) else base_chi2
+        singles, pairs = [], []
+        for x, c, ok, pen in rows:
+            score = bc - (c[b] + pen)
+            (pairs if len(x.effects) > 1 else singles).append((x.effects, score, bool(ok[b])))
+        same += _decide(bool(bc <= base_limit), singles, pairs) == v
+    return Confidence(w_score if winner else None, vs_next, same / BOOTSTRAP_SAMPLES, BOOTSTRAP_SAMPLES)
+
+
+def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> None:
+    """The verdict's explanation lines and the booth-file snippet."""
+    base, suspects, v = d.base, d.suspects, d.verdict
+    red = base.chi2 / base.dof
+    share = noise.model_share(base.rmse_percent)
+    if share is not None:
+        d.explanation.append(f"the declared model uncertainty ({noise.model_percent:g} %) covers "
+                             f"{100 * share:.0f} % of the residual variance (RMSE {base.rmse_percent:.2f} %)")
+    helpful = [s for s in suspects if s.score > SIGNIFICANT and not s.not_eligible]
+    if v.kind == "none":
+        d.explanation.append(
+            f"the residual is at the noise level (χ²/dof = {red:.2f} with noise {noise.percent:.2g} %) "
+            "and no candidate effect improves the fit significantly: no missing effect is needed "
+            "to explain these data")
+        return
+    if d.consistent and helpful:
+        d.explanation.append(
+            f"χ²/dof = {red:.2f} is within the noise, but {helpful[0].effect} lowers the BIC by "
+            f"{helpful[0].score:.1f}: the residual has structure that noise does not explain")
+    by_name = {x.effects: x for x in suspects + d.pairs if x.not_eligible}
+    by_name.update({x.effects: x for x in suspects + d.pairs if not x.not_eligible})
+    if v.kind == "unexplained":
+        d.explanation.append(f"χ²/dof = {red:.2f}: the residual is above the noise ({noise.percent:.2g} %), "
+                             "and no effect, nor any pair of the best suspects, brings it to the noise")
+        if v.partial:
+            p = by_name[v.partial]
+            excess = max(base.chi2 - base.dof, 1e-9)
+            part = max(0.0, min(1.0, (base.chi2 - p.chi2) / excess))
+            d.explanation.append(
+                f"best partial explanation: {p.effect} explains {100 * part:.0f} % of the excess χ² "
+                f"(RMSE {base.rmse_percent:.2f} % → {p.rmse_percent_after:.2f} %, χ²/dof "
+                f"{p.fit.chi2 / p.fit.dof:.2f}); something else is missing too")
+        d.explanation.extend(_trend(meas, base))
+        if d.where:
+            w = d.where[0]
+            d.explanation.append(
+                f"largest residual {w['residual_percent']:+.2f} % at ({w['x_mm']:g}, {w['y_mm']:g}, "
+                f"{w['z_mm']:g}) mm ({w['file']}:{w['line']})")
+        return
+    if v.kind == "ambiguous":
+        alts = [by_name[a] for a in v.alternatives]
+        d.tied = v.tied
+        d.explanation.append(
+            "these explanations fit the data equally well (BIC within "
+            f"{TIE_MARGIN:g}): " + ", ".join(f"{s.effect} (RMSE {s.rmse_percent_after:.2f} %, score "
+                                              f"{s.score:.1f})" for s in alts))
+        d.explanation.append("run `lbscene plan` for the points that tell them apart, or declare the "
+                             "lamp output known (known_output_groups in the measurement set)")
+    else:
+        best = by_name[v.effects]
+        d.tied = [best.effect]
+        runner = next((s for s in suspects + d.pairs if s is not best), None)
+        what = best.effect if len(v.effects) == 1 else " and ".join(v.effects) + " together"
+        msg = (f"{what} {'lowers' if len(v.effects) == 1 else 'lower'} the RMSE from "
+               f"{base.rmse_percent:.2f} % to {best.rmse_percent_after:.2f} % (BIC −{best.score:.1f}), "
+               "to the noise")
+        if runner is not None:
+            msg += f"; the next explanation, {runner.effect}, scores {runner.score:.1f}"
+        d.explanation.append(msg)
+        if len(v.effects) > 1:
+            singles = {e: by_name.get((e,)) for e in v.effects}
+            d.explanation.append("alone, neither reaches the noise: " + ", ".join(
+                f"{e} leaves RMSE {x.rmse_percent_after:.2f} %" for e, x in singles.items() if x is not None))
+        # the suggestion is minimal: the booth's effects exactly as declared plus the new ones with
+        # their fitted parameters.  The joint refit of the enabled effects' parameters is there to
+        # score candidates fairly; a 55-point grid rarely pins those values, so they stay the user's.
+        eff = {k: dict(v_ or {}) for k, v_ in booth_effects.items()}
+        for e, params in best.params_by_effect.items():
+            eff[e] = dict(params)
+        d.snippet = "".join(best.hardware.values()) + effects_snippet(eff, highlight=set(v.effects))
+    if base.spectral_rmse_percent is not None:
+        alts = [by_name[a] for a in (v.alternatives if v.kind == "ambiguous" else (v.effects,))]
+        sp = [s for s in alts if s.spectral_rmse_after is not None]
+        if sp:
+            d.explanation.append("white-tile spectrum: RMSE " f"{base.spectral_rmse_percent:.2f} % → " +
+                                 ", ".join(f"{s.effect} {s.spectral_rmse_after:.2f} %" for s in sp))

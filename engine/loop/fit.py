@@ -1,0 +1,579 @@
+"""
+Fit the forward model to measurements: free parameters, least squares, errors.
+
+Free parameters come from the booth's ``fit:`` section; the default is each
+lamp group's intensity scale (``group.<id>.intensity_scale``, 1 = the
+output the booth declares) and σ where a Gaussian profile is on
+(``group.<id>.sigma_deg`` for declared profiles, ``effect.angular_profile.sigma_deg``
+for the effect's own σ).  Groups whose output is *known* (booth
+``fit.known_output_groups`` or the measurement set's) are not fitted: a
+level mismatch then counts as evidence.
+
+Residuals are relative, in units of the measurement noise:
+``(model − measured)/measured/σ`` for every illuminance reading and every
+white-tile radiance band.  Intensity scales enter linearly and are solved
+exactly (bounded linear least squares) inside the nonlinear fit
+(variable projection), so the nonlinear search (``scipy.optimize.least_squares``,
+trust-region reflective, with bounds) only sees profile and effect
+parameters.  Standard errors come from the full Jacobian at the optimum,
+scaled by the reduced χ²; parameter pairs correlated beyond
+:data:`CORRELATION_WARNING` are reported.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lbscene.engine.files.diagnostics import LbsceneUserError
+
+__all__ = [
+    "FreeParameter",
+    "FitProblem",
+    "FitResult",
+    "default_free_parameters",
+    "resolve_free_parameters",
+    "estimate_noise_percent",
+    "CORRELATION_WARNING",
+    "INTENSITY_BOUNDS",
+]
+
+CORRELATION_WARNING = 0.95
+INTENSITY_BOUNDS = (1e-3, 1e3)
+DEFAULT_NOISE_PERCENT = 1.0
+DEFAULT_SPECTRAL_NOISE_PERCENT = 1.0
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One fitted quantity, addressed like ``group.fl.intensity_scale``."""
+
+    target: str
+    bounds: tuple[float, float]
+    initial: float
+
+    @property
+    def scope(self) -> str:
+        return self.target.split(".", 1)[0]
+
+    @property
+    def ident(self) -> str:
+        return self.target.split(".")[1]
+
+    @property
+    def name(self) -> str:
+        return self.target.rsplit(".", 1)[1]
+
+    @property
+    def linear(self) -> bool:
+        return self.scope == "group" and self.name == "intensity_scale"
+
+
+# --------------------------------------------------------------------------- parameters
+
+def _gaussian_groups(ir, lighting, effects) -> dict[str, float]:
+    """Groups whose lamps emit a declared Gaussian profile (with the effect on): group → σ."""
+    if "angular_profile" not in effects:
+        return {}
+    sel = (effects.get("angular_profile") or {}).get("lamps")
+    out = {}
+    for lp, _ in ir.lamps_on(lighting):
+        if sel is not None and lp.id not in sel:
+            continue
+        if lp.profile.get("type") == "gaussian":
+            out.setdefault(lp.group, float(lp.profile["sigma_deg"]))
+    return out
+
+
+def _effect_sigma_on(ir, lighting, effects) -> bool:
+    ap = effects.get("angular_profile")
+    if ap is None or ap.get("sigma_deg") is None:
+        return False
+    sel = ap.get("lamps")
+    return any(lp.profile.get("type") == "isotropic" and (sel is None or lp.id in sel)
+               for lp, _ in ir.lamps_on(lighting))
+
+
+def default_free_parameters(ir, lighting: str, effects: dict, known_groups=()) -> list[FreeParameter]:
+    """Each lamp group's intensity scale (unless known) and σ where a Gaussian profile is on."""
+    out = []
+    groups = []
+    for lp, _ in ir.lamps_on(lighting):
+        if lp.group not in groups:
+            groups.append(lp.group)
+    for g in groups:
+        if g not in known_groups:
+            out.append(FreeParameter(f"group.{g}.intensity_scale", INTENSITY_BOUNDS, 1.0))
+    for g, s in _gaussian_groups(ir, lighting, effects).items():
+        out.append(FreeParameter(f"group.{g}.sigma_deg", (2.0, 1000.0), s))
+    if _effect_sigma_on(ir, lighting, effects):
+        out.append(FreeParameter("effect.angular_profile.sigma_deg", (2.0, 1000.0),
+                                 float(effects["angular_profile"]["sigma_deg"])))
+    return out
+
+
+def effect_parameter(eid: str, name: str, effects: dict, bounds=None, initial=None) -> FreeParameter:
+    """A free effect parameter with bounds from the effect's ``fit_parameters`` (or given)."""
+    from lbscene.engine.light.effects.registry import get_effect
+
+    cls = get_effect(eid)
+    fp = getattr(cls, "fit_parameters", {}) or {}
+    if bounds is None:
+        if name not in fp:
+            raise KeyError(name)
+        bounds = fp[name]
+    cur = (effects.get(eid) or {}).get(name)
+    if initial is None:
+        initial = cur if cur is not None else getattr(cls, "fit_initial", {}).get(name)
+        if initial is None:
+            f = cls.Params.model_fields[name]
+            initial = f.default if f.default is not None else 0.5 * (bounds[0] + bounds[1])
+    lo, hi = bounds
+    initial = float(min(max(float(initial), lo), hi))
+    return FreeParameter(f"effect.{eid}.{name}", (float(lo), float(hi)), initial)
+
+
+def resolve_free_parameters(ir, lighting: str, effects: dict, known_groups=(),
+                            booth_file: str = "booth.yaml") -> list[FreeParameter]:
+    """The booth's ``fit.free`` (validated against the booth), or the defaults."""
+    from lbscene.engine.light.effects.registry import UnknownEffectError, get_effect
+
+    spec = ir.fit.get("free")
+    if spec is None:
+        return default_free_parameters(ir, lighting, effects, known_groups)
+    groups = {lp.group for lp in ir.lamps}
+    lamps = {lp.id for lp in ir.lamps}
+    out = []
+    for item in spec:
+        tgt, b, init = item["target"], item.get("bounds"), item.get("initial")
+        scope, ident, name = tgt.split(".")[0], tgt.split(".")[1], tgt.rsplit(".", 1)[1]
+
+        def bad(msg, expected):
+            raise LbsceneUserError.single("LB307", f"fit.free: {msg}", booth_file, value=repr(tgt),
+                                          expected=expected)
+        if scope == "group":
+            if ident not in groups:
+                bad(f"unknown lamp group '{ident}'", f"one of {', '.join(sorted(groups))}")
+            if name == "intensity_scale":
+                if ident in known_groups:
+                    continue  # known output wins
+                out.append(FreeParameter(tgt, tuple(b or INTENSITY_BOUNDS), float(init or 1.0)))
+            elif name == "sigma_deg":
+                s = _gaussian_groups(ir, lighting, effects).get(ident, 60.0)
+                out.append(FreeParameter(tgt, tuple(b or (2.0, 1000.0)), float(init or s)))
+            else:
+                bad(f"unknown group parameter '{name}'", "intensity_scale or sigma_deg")
+        elif scope == "lamp":
+            if ident not in lamps:
+                bad(f"unknown lamp '{ident}'", f"one of {', '.join(sorted(lamps))}")
+            if name != "sigma_deg":
+                bad(f"unknown lamp parameter '{name}'", "sigma_deg")
+            prof = ir.lamp(ident).profile
+            s = float(prof["sigma_deg"]) if prof.get("type") == "gaussian" else 60.0
+            out.append(FreeParameter(tgt, tuple(b or (2.0, 1000.0)), float(init or s)))
+        else:
+            try:
+                cls = get_effect(ident)
+            except UnknownEffectError:
+                bad(f"unknown effect '{ident}'", "a registered effect id (see `lbscene effects`)")
+            if ident not in effects:
+                bad(f"effect '{ident}' is not enabled in effects:", "an enabled effect")
+            if name not in cls.Params.model_fields:
+                bad(f"effect '{ident}' has no parameter '{name}'",
+                    f"one of {', '.join(cls.Params.model_fields)}")
+            try:
+                out.append(effect_parameter(ident, name, effects, tuple(b) if b else None, init))
+            except KeyError:
+                bad(f"no default bounds for '{tgt}'", "bounds: [low, high]")
+    return out
+
+
+def apply_parameters(effects: dict, free: list[FreeParameter], values) -> tuple[dict, dict, dict]:
+    """Parameter values → (effects, lamp_overrides, group σ) for the forward model."""
+    eff = {k: dict(v or {}) for k, v in effects.items()}
+    lamp_over: dict = {}
+    group_sigma: dict = {}
+    for fp, v in zip(free, values):
+        if fp.linear:
+            continue
+        if fp.scope == "effect":
+            eff.setdefault(fp.ident, {})[fp.name] = float(v)
+        elif fp.scope == "lamp":
+            lamp_over.setdefault(fp.ident, {})[fp.name] = float(v)
+        elif fp.scope == "group" and fp.name == "sigma_deg":
+            group_sigma[fp.ident] = float(v)
+    return eff, lamp_over, group_sigma
+
+
+# --------------------------------------------------------------------------- noise
+
+def estimate_noise_percent(ill) -> float | None:
+    """Model-free noise estimate: residual of a smooth 2-D polynomial through log(E).
+
+    Uses the largest set of upward readings at one height (≥ 15 points);
+    the polynomial degree leaves ≥ 20 degrees of freedom where it can.
+    Returns ``None`` when there are too few points.
+    """
+    if ill is None or len(ill) < 15:
+        return None
+    up = ill.normals[:, 2] > 0.999
+    z = np.round(ill.points_mm[:, 2], 0)
+    best = None
+    for zz in np.unique(z[up]):
+        sel = up & (z == zz)
+        if best is None or sel.sum() > best.sum():
+            best = sel
+    if best is None or best.sum() < 15:
+        return None
+    P = ill.points_mm[best]
+    y = np.log(ill.lux[best])
+    n = len(y)
+    x0 = (P[:, 0] - P[:, 0].mean()) / max(np.ptp(P[:, 0]) / 2, 1e-9)
+    y0 = (P[:, 1] - P[:, 1].mean()) / max(np.ptp(P[:, 1]) / 2, 1e-9)
+    for deg in (4, 3, 2, 1):
+        terms = [(a, b) for a in range(deg + 1) for b in range(deg + 1 - a)]
+        # a direction with few distinct values cannot carry high powers
+        nx, ny = len(np.unique(np.round(x0, 6))), len(np.unique(np.round(y0, 6)))
+        terms = [(a, b) for a, b in terms if a < nx and b < ny]
+        if n - len(terms) >= min(20, n // 2):
+            break
+    A = np.stack([x0 ** a * y0 ** b for a, b in terms], axis=1)
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ coef
+    dof = n - np.linalg.matrix_rank(A)
+    if dof <= 0:
+        return None
+    return float(100.0 * np.sqrt(np.sum(r ** 2) / dof))
+
+
+# --------------------------------------------------------------------------- result
+
+@dataclass
+class FitResult:
+    """Outcome of one fit (or of an evaluation without fitting)."""
+
+    free: list[FreeParameter]
+    values: dict[str, float]
+    stderr: dict[str, float]
+    correlation: np.ndarray
+    warnings: list[str]
+    effects: dict
+    lamp_overrides: dict
+    scales: dict[str, float]
+    chi2: float
+    n_residuals: int
+    lux_pred: np.ndarray | None
+    lux_meas: np.ndarray | None
+    tile_bands_pred: np.ndarray | None
+    tile_bands_meas: np.ndarray | None
+    tile_band_mask: np.ndarray | None
+    tile_1nm_pred: np.ndarray | None
+    success: bool = True
+    message: str = ""
+    nfev: int = 0
+    fitted: bool = True
+
+    @property
+    def n_params(self) -> int:
+        return len(self.free) if self.fitted else 0
+
+    @property
+    def dof(self) -> int:
+        return max(self.n_residuals - self.n_params, 1)
+
+    @property
+    def residual_percent(self) -> np.ndarray:
+        if self.lux_pred is None:
+            return np.zeros(0)
+        return 100.0 * (self.lux_pred - self.lux_meas) / self.lux_meas
+
+    @property
+    def spectral_residual_percent(self) -> np.ndarray | None:
+        if self.tile_bands_pred is None:
+            return None
+        m = self.tile_band_mask
+        out = np.full(self.tile_bands_pred.shape, np.nan)
+        out[m] = 100.0 * (self.tile_bands_pred[m] - self.tile_bands_meas[m]) / self.tile_bands_meas[m]
+        return out
+
+    @property
+    def rmse_percent(self) -> float:
+        r = self.residual_percent
+        return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
+
+    @property
+    def mean_abs_percent(self) -> float:
+        r = self.residual_percent
+        return float(np.mean(np.abs(r))) if r.size else float("nan")
+
+    @property
+    def max_percent(self) -> float:
+        r = self.residual_percent
+        return float(np.max(np.abs(r))) if r.size else float("nan")
+
+    @property
+    def spectral_rmse_percent(self) -> float | None:
+        s = self.spectral_residual_percent
+        if s is None:
+            return None
+        s = s[np.isfinite(s)]
+        return float(np.sqrt(np.mean(s ** 2))) if s.size else None
+
+    def bic(self) -> float:
+        """χ² + k·ln n (the noise is known or estimated, so χ² is the likelihood term)."""
+        return self.chi2 + self.n_params * math.log(max(self.n_residuals, 2))
+
+    def parameters_table(self) -> list[dict]:
+        return [{"target": fp.target, "value": self.values[fp.target],
+                 "stderr": self.stderr.get(fp.target), "bounds": list(fp.bounds),
+                 "at_bound": bool(np.isclose(self.values[fp.target], fp.bounds[0], rtol=1e-6, atol=1e-9)
+                                  or np.isclose(self.values[fp.target], fp.bounds[1], rtol=1e-6,
+                                                atol=1e-9))}
+                for fp in self.free] if self.fitted else []
+
+
+# --------------------------------------------------------------------------- the problem
+
+@dataclass
+class FitProblem:
+    """Measurements + a model configuration (enabled effects, free parameters).
+
+    ``cache`` is shared by every forward evaluation (and may be shared by
+    several problems on the same IR: the diagnosis does).
+    """
+
+    meas: object
+    effects: dict
+    free: list[FreeParameter]
+    noise_percent: float
+    spectral_noise_percent: float = DEFAULT_SPECTRAL_NOISE_PERCENT
+    cache: dict = field(default_factory=dict)
+    extra_points: object = None     # IlluminanceData of points to predict (not fitted)
+    #: least_squares' xtol and ftol: the user's fit converges tightly; the diagnosis, which only
+    #: needs χ² to a small fraction of a BIC unit, loosens it (see diagnose.SCORING_TOLERANCE)
+    tolerance: float = 1e-8
+
+    def __post_init__(self):
+        m = self.meas
+        self.ir = m.ir
+        self.lighting = m.lighting
+        self.groups = []
+        for lp, _ in self.ir.lamps_on(self.lighting):
+            if lp.group not in self.groups:
+                self.groups.append(lp.group)
+        pts, nrm, meter = [], [], []
+        self.n_lux = 0
+        if m.illuminance is not None:
+            pts.append(m.illuminance.points_mm)
+            nrm.append(m.illuminance.normals)
+            meter.append(np.ones(len(m.illuminance), bool))
+            self.n_lux = len(m.illuminance)
+        self.tile_row = None
+        if m.tile is not None:
+            self.tile_row = sum(len(p) for p in pts)
+            pts.append(m.tile.position_mm[None])
+            nrm.append(m.tile.normal[None])
+            meter.append(np.zeros(1, bool))
+        self.P = np.concatenate(pts)
+        self.N = np.concatenate(nrm)
+        self.meter = np.concatenate(meter)
+        self.sigma_e = self.noise_percent / 100.0
+        self.sigma_s = self.spectral_noise_percent / 100.0
+        if m.tile is not None:
+            g = self.ir.grid
+            inside = np.array([m.tile.covered[(np.arange(360, 831) >= lo) & (np.arange(360, 831) <= hi)].all()
+                               for lo, hi in zip(g.edges_nm[:-1], g.edges_nm[1:])])
+            self.tile_meas = g.integrate(m.tile.radiance_1nm)
+            self.tile_mask = inside & (self.tile_meas > 0.02 * self.tile_meas.max())
+        else:
+            self.tile_meas = None
+            self.tile_mask = None
+        self.lin = [i for i, fp in enumerate(self.free) if fp.linear]
+        self.nl = [i for i, fp in enumerate(self.free) if not fp.linear]
+        self.lin_groups = [self.free[i].ident for i in self.lin]
+        self.nfev = 0
+        self._last = None
+
+    # ------------------------------------------------------------------ model
+    def model(self, values_nl) -> "ForwardModel":  # noqa: F821
+        from lbscene.engine.light.forward import ForwardModel
+
+        full = [fp.initial for fp in self.free]
+        for k, i in enumerate(self.nl):
+            full[i] = values_nl[k]
+        eff, lamp_over, group_sigma = apply_parameters(self.effects, self.free, full)
+        for lp, _ in self.ir.lamps_on(self.lighting):
+            if lp.group in group_sigma:
+                lamp_over.setdefault(lp.id, {})["sigma_deg"] = group_sigma[lp.group]
+        return ForwardModel(self.ir, self.lighting, effects=eff, lamp_overrides=lamp_over,
+                            cache=self.cache), eff, lamp_over
+
+    def components(self, values_nl):
+        """Per-group illuminance (G, M) and tile radiance bands (G, B) at unit scales."""
+        key = tuple(float(v) for v in values_nl)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        fm, eff, lo = self.model(values_nl)
+        pred = fm.predict(self.P, self.N, self.meter)
+        self.nfev += 1
+        lux = pred.lux_by_group()
+        A = np.stack([lux[g][: self.n_lux] for g in self.groups]) if self.n_lux else None
+        T = T1 = None
+        if self.tile_row is not None:
+            refl = self.meas.tile.reflectance_1nm
+            T1 = []
+            for g in self.groups:
+                spec = pred.spectral_1nm({h: (1.0 if h == g else 0.0) for h in self.groups},
+                                         rows=[self.tile_row])
+                T1.append(spec[0] * refl / np.pi)
+            T1 = np.stack(T1)
+            T = self.ir.grid.integrate(T1)
+        out = (A, T, T1, eff, lo)
+        self._last = (key, out)
+        return out
+
+    # ------------------------------------------------------------------ residuals
+    def _design(self, A, T):
+        """Rows of the weighted linear system: D (n, G), target t (n,)."""
+        rows, tgt = [], []
+        if A is not None:
+            y = self.meas.illuminance.lux
+            rows.append((A / (y * self.sigma_e)[None, :]).T)
+            tgt.append(np.full(len(y), 1.0 / self.sigma_e))
+        if T is not None and self.tile_mask.any():
+            m = self.tile_mask
+            rows.append((T[:, m] / (self.tile_meas[m] * self.sigma_s)[None, :]).T)
+            tgt.append(np.full(int(m.sum()), 1.0 / self.sigma_s))
+        return np.concatenate(rows), np.concatenate(tgt)
+
+    def scales_for(self, A, T) -> dict[str, float]:
+        """Best intensity scales (bounded, linear) for fixed nonlinear parameters."""
+        D, t = self._design(A, T)
+        s = np.ones(len(self.groups))
+        free_idx = [self.groups.index(g) for g in self.lin_groups]
+        if free_idx:
+            fixed = [i for i in range(len(self.groups)) if i not in free_idx]
+            rhs = t - (D[:, fixed] @ s[fixed] if fixed else 0.0)
+            Df = D[:, free_idx]
+            lo = np.array([self.free[i].bounds[0] for i in self.lin])
+            hi = np.array([self.free[i].bounds[1] for i in self.lin])
+            sol, *_ = np.linalg.lstsq(Df, rhs, rcond=None)
+            if np.any(sol < lo) or np.any(sol > hi) or not np.all(np.isfinite(sol)):
+                from scipy.optimize import lsq_linear
+
+                sol = lsq_linear(Df, rhs, bounds=(lo, hi)).x
+            s[free_idx] = sol
+        return dict(zip(self.groups, s))
+
+    def residuals(self, values_nl, scales=None) -> np.ndarray:
+        A, T, *_ = self.components(values_nl)
+        if scales is None:
+            scales = self.scales_for(A, T)
+        D, t = self._design(A, T)
+        s = np.array([scales[g] for g in self.groups])
+        return D @ s - t
+
+    @property
+    def n_residuals(self) -> int:
+        return self.n_lux + (int(self.tile_mask.sum()) if self.tile_mask is not None else 0)
+
+    # ------------------------------------------------------------------ solve
+    def evaluate(self, fitted: bool = False) -> FitResult:
+        """The model at the initial parameter values (declared booth), no fitting."""
+        x0 = np.array([self.free[i].initial for i in self.nl])
+        scales = {g: 1.0 for g in self.groups}
+        return self._result(x0, scales, success=True, message="not fitted", fitted=False)
+
+    def solve(self) -> FitResult:
+        from scipy.optimize import least_squares
+
+        from lbscene.engine.light.forward import blas_single_thread
+
+        if self.n_residuals < len(self.free) + 1:
+            f = self.meas.illuminance.files[0] if self.meas.illuminance is not None else str(self.meas.path)
+            raise LbsceneUserError.single(
+                "LB407", f"{self.n_residuals} data values cannot fit {len(self.free)} free parameters",
+                f, expected=f"at least {len(self.free) + 1} readings (or fewer free parameters)")
+        with blas_single_thread():
+            if not self.nl:
+                A, T, *_ = self.components(np.zeros(0))
+                return self._result(np.zeros(0), self.scales_for(A, T), True, "linear", fitted=True)
+            lo = np.array([self.free[i].bounds[0] for i in self.nl], float)
+            hi = np.array([self.free[i].bounds[1] for i in self.nl], float)
+            x0 = np.clip(np.array([self.free[i].initial for i in self.nl], float),
+                         lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+            sol = least_squares(self.residuals, x0, bounds=(lo, hi), method="trf",
+                                x_scale=np.maximum(hi - lo, 1e-9) * 0.1, diff_step=1e-4,
+                                xtol=self.tolerance, ftol=self.tolerance, max_nfev=200)
+            A, T, *_ = self.components(sol.x)
+            return self._result(sol.x, self.scales_for(A, T), bool(sol.success), str(sol.message),
+                                fitted=True)
+
+    def _result(self, x_nl, scales, success, message, fitted) -> FitResult:
+        A, T, T1, eff, lamp_over = self.components(x_nl)
+        s = np.array([scales[g] for g in self.groups])
+        values = {}
+        for k, i in enumerate(self.nl):
+            values[self.free[i].target] = float(x_nl[k])
+        for i in self.lin:
+            values[self.free[i].target] = float(scales[self.free[i].ident])
+        r = self.residuals(x_nl, scales)
+        chi2 = float(r @ r)
+        stderr, corr, warns = {}, np.eye(len(self.free)), []
+        if fitted and self.free:
+            stderr, corr, warns = self._errors(x_nl, scales, chi2)
+        lux_pred = s @ A if A is not None else None
+        tile_pred = s @ T if T is not None else None
+        tile1 = s @ T1 if T1 is not None else None
+        return FitResult(
+            free=list(self.free), values=values, stderr=stderr, correlation=corr, warnings=warns,
+            effects=eff, lamp_overrides=lamp_over, scales=dict(scales), chi2=chi2,
+            n_residuals=self.n_residuals, lux_pred=lux_pred,
+            lux_meas=self.meas.illuminance.lux if self.n_lux else None,
+            tile_bands_pred=tile_pred, tile_bands_meas=self.tile_meas, tile_band_mask=self.tile_mask,
+            tile_1nm_pred=tile1, success=success, message=message, nfev=self.nfev, fitted=fitted)
+
+    def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):
+        """Standard errors and correlations from the Jacobian over all free parameters.
+
+        The covariance is scaled by χ²/dof (a fit worse than the noise widens it), unless
+        ``noise_limited``: then it is what the data could pin down at the declared noise."""
+        n = self.n_residuals
+        cols = []
+        A, T, *_ = self.components(x_nl)
+        D, _ = self._design(A, T)
+        r0 = self.residuals(x_nl, scales)
+        for i, fp in enumerate(self.free):
+            if fp.linear:
+                cols.append(D[:, self.groups.index(fp.ident)])
+            else:
+                k = self.nl.index(i)
+                h = 1e-4 * max(abs(x_nl[k]), 1e-3 * (fp.bounds[1] - fp.bounds[0]))
+                x2 = np.array(x_nl, float)
+                if x2[k] + h > fp.bounds[1]:
+                    h = -h
+                x2[k] += h
+                cols.append((self.residuals(x2, scales) - r0) / h)
+        self.components(x_nl)  # restore the cache to the optimum
+        J = np.stack(cols, axis=1)
+        dof = max(n - J.shape[1], 1)
+        s2 = 1.0 if noise_limited else chi2 / dof
+        try:
+            cov = np.linalg.pinv(J.T @ J) * s2
+        except np.linalg.LinAlgError:
+            return {}, np.eye(J.shape[1]), ["the fit's Jacobian is singular: parameters are not "
+                                            "identifiable from these data"]
+        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            corr = cov / np.outer(se, se)
+        corr = np.nan_to_num(corr)
+        warns = []
+        names = [fp.target for fp in self.free]
+        for a in range(len(names)):
+            for b in range(a + 1, len(names)):
+                if abs(corr[a, b]) > CORRELATION_WARNING:
+                    warns.append(f"{names[a]} and {names[b]} are strongly correlated "
+                                 f"(ρ = {corr[a, b]:+.3f}): these data cannot tell them apart")
+        return dict(zip(names, se.tolist())), corr, warns

@@ -1,0 +1,243 @@
+"""
+Evaluate :data:`~lbscene.schemas.spectrum.SpectrumSpec` nodes into numbers.
+
+Every spectrum becomes a 1 nm array on
+:data:`~lbscene.engine.spectra.bands.REFERENCE_WAVELENGTHS_NM` (360–830 nm); band
+values come from :meth:`BandGrid.integrate` (band means), never from point
+samples.  Standard data (CIE illuminants, measured light sources, V(λ), CMFs)
+come from colour-science, imported lazily.
+
+``kind`` decides what happens outside a measured range: emission spectra are
+zero there (unknown emission is not invented), reflectances and
+transmittances hold their end values.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from lbscene.engine.files.diagnostics import LbsceneUserError
+from .bands import REFERENCE_WAVELENGTHS_NM, to_reference
+from lbscene.engine.files.yamlio import read_text_bounded
+
+__all__ = [
+    "SpectrumKind",
+    "evaluate_spectrum",
+    "read_spectrum_csv",
+    "photopic_1nm",
+    "cmfs_1nm",
+    "luminous_efficacy_sum",
+    "ILLUMINANT_ALIASES",
+    "MAX_CSV_BYTES",
+]
+
+SpectrumKind = Literal["emission", "reflectance", "transmittance"]
+MAX_CSV_BYTES = 16 * 1024 * 1024
+#: Common short names → colour-science dataset names.
+ILLUMINANT_ALIASES = {f"F{i}": f"FL{i}" for i in range(1, 13)}
+K_M_LM_PER_W = 683.0
+
+
+@lru_cache(maxsize=1)
+def photopic_1nm() -> np.ndarray:
+    """CIE 1924 photopic V(λ) on the 1 nm reference grid."""
+    import colour
+
+    sd = colour.colorimetry.SDS_LEFS_PHOTOPIC["CIE 1924 Photopic Standard Observer"]
+    return np.interp(REFERENCE_WAVELENGTHS_NM, sd.wavelengths, sd.values, left=0.0, right=0.0)
+
+
+@lru_cache(maxsize=1)
+def cmfs_1nm() -> np.ndarray:
+    """CIE 1931 2° colour matching functions, shape (471, 3)."""
+    import colour
+
+    cm = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return np.stack([np.interp(REFERENCE_WAVELENGTHS_NM, cm.wavelengths, cm.values[:, i],
+                               left=0.0, right=0.0) for i in range(3)], axis=1)
+
+
+def luminous_efficacy_sum(spectral_1nm: np.ndarray) -> np.ndarray:
+    """683·Σ S(λ)·V(λ)·1 nm: photometric value of a 1 nm radiometric spectrum (last axis)."""
+    return K_M_LM_PER_W * np.asarray(spectral_1nm) @ photopic_1nm()
+
+
+def _extrapolation(kind: SpectrumKind) -> str:
+    return "zero" if kind == "emission" else "constant"
+
+
+def read_spectrum_csv(path: Path, display: str, column: str | None = None,
+                      kind: SpectrumKind = "emission") -> np.ndarray:
+    """Read a ``wavelength_nm,<value>`` CSV onto the 1 nm grid, with located errors."""
+    text = read_text_bounded(path, display, MAX_CSV_BYTES)
+    rows = list(csv.reader(io.StringIO(text)))
+    rows = [(i + 1, r) for i, r in enumerate(rows) if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise LbsceneUserError.single("LB407", "CSV file has no rows", display, 1, 1,
+                                      expected="a header 'wavelength_nm,<value>' and data rows")
+    hline, header = rows[0]
+    header = [h.strip() for h in header]
+    if "wavelength_nm" not in header:
+        raise LbsceneUserError.single(
+            "LB400", "missing column 'wavelength_nm'", display, hline, 1,
+            value=",".join(header), expected="a header with 'wavelength_nm' and one value column")
+    wcol = header.index("wavelength_nm")
+    others = [h for h in header if h != "wavelength_nm"]
+    if column is None:
+        if len(others) != 1:
+            raise LbsceneUserError.single(
+                "LB400", "cannot tell which column holds the values", display, hline, 1,
+                value=",".join(header), expected="exactly one value column, or `column:` in the spec")
+        column = others[0]
+    if column not in header:
+        raise LbsceneUserError.single("LB400", f"missing column {column!r}", display, hline, 1,
+                                      value=",".join(header))
+    vcol = header.index(column)
+    wl, vals = [], []
+    for line, r in rows[1:]:
+        if len(r) != len(header):
+            raise LbsceneUserError.single("LB400", f"row has {len(r)} fields, header has {len(header)}",
+                                          display, line, 1)
+        for col, dest in ((wcol, wl), (vcol, vals)):
+            cell = r[col].strip()
+            try:
+                x = float(cell)
+            except ValueError:
+                x = float("nan")
+            if not np.isfinite(x):
+                colno = sum(len(c) + 1 for c in r[:col]) + 1
+                raise LbsceneUserError.single("LB401", f"'{header[col]}' is not a finite number",
+                                              display, line, colno, value=repr(cell),
+                                              expected="a finite number")
+            dest.append(x)
+        if vals[-1] < 0:
+            colno = sum(len(c) + 1 for c in r[:vcol]) + 1
+            raise LbsceneUserError.single("LB402", f"negative {column}", display, line, colno,
+                                          value=repr(vals[-1]), expected="a value >= 0")
+        if len(wl) > 1 and wl[-1] <= wl[-2]:
+            raise LbsceneUserError.single(
+                "LB405", "wavelengths are not strictly increasing", display, line, 1,
+                value=f"{wl[-1]:g} after {wl[-2]:g}", expected=f"a wavelength above {wl[-2]:g} nm")
+    if len(wl) < 2:
+        raise LbsceneUserError.single("LB407", "need at least two wavelengths", display, hline, 1)
+    return to_reference(wl, vals, extrapolate=_extrapolation(kind))
+
+
+def _colour_dataset_sd(dataset_name: str, name: str):
+    import colour
+
+    data = colour.SDS_ILLUMINANTS if dataset_name == "illuminant" else colour.SDS_LIGHT_SOURCES
+    key = ILLUMINANT_ALIASES.get(name, name) if dataset_name == "illuminant" else name
+    if key in data:
+        return data[key]
+    lower = {k.lower(): k for k in data}
+    if key.lower() in lower:
+        return data[lower[key.lower()]]
+    return None
+
+
+def known_names(dataset_name: str) -> list[str]:
+    import colour
+
+    data = colour.SDS_ILLUMINANTS if dataset_name == "illuminant" else colour.SDS_LIGHT_SOURCES
+    return sorted(data.keys())
+
+
+def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
+                      display: str = "<spectrum>") -> np.ndarray:
+    """Evaluate a spectrum spec to a 1 nm array (values × ``spec.scale``).
+
+    Parameters
+    ----------
+    spec
+        A :data:`~lbscene.schemas.spectrum.SpectrumSpec` model.
+    resolve
+        Callable turning a file reference (as written) into a Path — e.g.
+        :meth:`LoadedDocument.resolve`.  Needed for ``csv``/``instrument_file``.
+    kind
+        ``'emission'``, ``'reflectance'`` or ``'transmittance'``.
+    display
+        How to name the spectrum in error messages.
+    """
+    t = spec.type
+    ext = _extrapolation(kind)
+    if t == "constant":
+        values = np.full(REFERENCE_WAVELENGTHS_NM.size, float(spec.value))
+    elif t == "inline":
+        values = to_reference(spec.wavelengths_nm, spec.values, extrapolate=ext)
+    elif t in ("cie_illuminant", "light_source"):
+        sd = _colour_dataset_sd("illuminant" if t == "cie_illuminant" else "light_source", spec.name)
+        if sd is None:
+            import difflib
+
+            dataset = "illuminant" if t == "cie_illuminant" else "light_source"
+            close = difflib.get_close_matches(spec.name, known_names(dataset), n=3, cutoff=0.5)
+            raise LbsceneUserError.single(
+                "LB204", f"unknown {t.replace('_', ' ')} {spec.name!r}", display,
+                expected="a name in colour.SDS_ILLUMINANTS" if t == "cie_illuminant"
+                else "a name in colour.SDS_LIGHT_SOURCES",
+                hint=(f"did you mean {', '.join(repr(c) for c in close)}? " if close else "")
+                + "Every name is listed in the documentation's file reference (Named spectra).")
+        values = to_reference(sd.wavelengths, sd.values, extrapolate=ext)
+    elif t == "blackbody":
+        import colour
+
+        wl_m = REFERENCE_WAVELENGTHS_NM * 1e-9
+        values = colour.colorimetry.planck_law(wl_m, spec.cct_K)
+        values = values / np.interp(560.0, REFERENCE_WAVELENGTHS_NM, values)
+    elif t == "daylight":
+        import colour
+
+        xy = colour.temperature.CCT_to_xy_CIE_D(spec.cct_K * 1.4388 / 1.4380)
+        sd = colour.sd_CIE_illuminant_D_series(xy)
+        values = to_reference(sd.wavelengths, sd.values, extrapolate=ext)
+    elif t == "csv":
+        path = resolve(spec.path)
+        from lbscene.engine.files.load import display_path
+
+        values = read_spectrum_csv(path, display_path(path), spec.column, kind)
+    elif t == "instrument_file":
+        values = _read_instrument(spec, resolve(spec.path), kind)
+    else:  # pragma: no cover - the schema's discriminator prevents this
+        raise ValueError(f"unknown spectrum type {t!r}")
+    return np.asarray(values, float) * float(spec.scale)
+
+
+def _read_instrument(spec, path: Path, kind: SpectrumKind) -> np.ndarray:
+    import colour
+
+    from lbscene.engine.files.load import display_path
+    from lbscene.engine.files.yamlio import read_bytes_bounded
+
+    display = display_path(path)
+    # a regular file of bounded size before the reader of colour-science opens it (a FIFO would block)
+    read_bytes_bounded(path, display, MAX_CSV_BYTES)
+    try:
+        if spec.format == "ies_tm27_14":
+            sd = colour.io.SpectralDistribution_IESTM2714(str(path)).read()
+            sds = {sd.name: sd}
+        elif spec.format == "xrite":
+            sds = colour.io.read_sds_from_xrite_file(str(path))
+        elif spec.format == "sekonic":
+            sd = colour.io.SpectralDistribution_Sekonic(str(path)).read()
+            sds = {sd.name: sd}
+        else:
+            sd = colour.io.SpectralDistribution_UPRTek(str(path)).read()
+            sds = {sd.name: sd}
+    except Exception as exc:  # the readers raise many kinds of errors on bad files
+        raise LbsceneUserError.single("LB203", f"cannot read {spec.format} file: {exc}", display,
+                                      expected=f"a valid {spec.format} export")
+    if spec.name is not None:
+        if spec.name not in sds:
+            raise LbsceneUserError.single("LB202", f"no spectrum named {spec.name!r} in the file",
+                                          display, value=spec.name, expected=f"one of {sorted(sds)}")
+        sd = sds[spec.name]
+    else:
+        sd = next(iter(sds.values()))
+    return to_reference(sd.wavelengths, sd.values, extrapolate=_extrapolation(kind))

@@ -1,0 +1,204 @@
+"""
+Angular intensity profiles of lamps: I(θ) = I0 · f(θ), f(0) = 1.
+
+θ is the angle from the lamp's ``aim`` direction.  Profiles are axially
+symmetric about ``aim`` except IES files, which are read in full (LM-63
+type C photometry: vertical angle from nadir, horizontal angle around it).
+
+* ``isotropic``: f = 1
+* ``gaussian``: f = exp(−(θ/2σ)²) (the seed's model; θ and σ in the same unit)
+* ``cosine_power``: f = cosⁿθ for θ < 90°, else 0
+* ``ies``: candela table of an IES LM-63 file, normalised by its peak
+
+Examples
+--------
+>>> import numpy as np
+>>> p = GaussianShape(sigma_deg=30.0)
+>>> float(p(np.radians(60.0)))  # exp(-(60/60)^2)
+0.36787944117144233
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from lbscene.engine.files.diagnostics import LbsceneUserError
+from lbscene.engine.files.yamlio import read_text_bounded
+
+__all__ = ["IsotropicShape", "GaussianShape", "CosinePowerShape", "IesShape", "profile_shape",
+           "solid_angle_weight_sr", "read_ies", "IesData", "ies_text"]
+
+
+@dataclass(frozen=True)
+class IsotropicShape:
+    isotropic = True
+
+    def __call__(self, theta_rad, phi_rad=None):
+        return np.ones_like(np.asarray(theta_rad, float))
+
+
+@dataclass(frozen=True)
+class GaussianShape:
+    sigma_deg: float
+
+    def __call__(self, theta_rad, phi_rad=None):
+        t = np.degrees(np.asarray(theta_rad, float))
+        return np.exp(-(t / (2.0 * self.sigma_deg)) ** 2)
+
+
+@dataclass(frozen=True)
+class CosinePowerShape:
+    exponent: float
+
+    def __call__(self, theta_rad, phi_rad=None):
+        c = np.cos(np.asarray(theta_rad, float))
+        return np.where(c > 0, np.abs(c) ** self.exponent, 0.0)
+
+
+@dataclass(frozen=True)
+class IesData:
+    vertical_deg: np.ndarray      # (nv,)
+    horizontal_deg: np.ndarray    # (nh,)
+    candela: np.ndarray           # (nh, nv), already multiplied by the file's multiplier
+    lumens_per_lamp: float
+
+
+@dataclass(frozen=True, eq=False)
+class IesShape:
+    """Candela table of an LM-63 type C file, normalised by its peak: f(γ, C).
+
+    Bilinear in C and γ over the file's planes, unfolded by the file's symmetry
+    (last horizontal angle 0: rotational; 90: quadrant; 180: bilateral about the
+    C0–C180 plane; 360 or a full set without its 360° plane: none).  γ = 0 along
+    the lamp's ``aim``, C = 0 along its ``axis`` (see :mod:`lbscene.engine.light.emitters`);
+    0 outside the file's vertical range.
+    """
+
+    data: IesData
+    two_d = True
+
+    @cached_property
+    def _table(self):
+        d = self.data
+        h = np.asarray(d.horizontal_deg, float)
+        cd = np.asarray(d.candela, float)
+        if h.size == 1:
+            return None, cd[0]
+        hmax = h[-1]
+        if hmax <= 90.0:                     # quadrant symmetry: mirror to 0–180, then 0–360
+            h, cd = np.r_[h, 180.0 - h[-2::-1]], np.r_[cd, cd[-2::-1]]
+            hmax = 180.0
+        if hmax <= 180.0:                    # bilateral symmetry about C0–C180
+            h, cd = np.r_[h, 360.0 - h[-2::-1]], np.r_[cd, cd[-2::-1]]
+        if h[-1] < 360.0:                    # full set written without its 360° plane
+            h, cd = np.r_[h, 360.0], np.r_[cd, cd[:1]]
+        return h, cd
+
+    def __call__(self, theta_rad, phi_rad=None):
+        d = self.data
+        t = np.degrees(np.asarray(theta_rad, float))
+        v = np.asarray(d.vertical_deg, float)
+        peak = float(np.max(d.candela))
+        h, cd = self._table
+        inside = (t >= v[0] - 1e-9) & (t <= v[-1] + 1e-9)
+        if h is None:
+            return np.where(inside, np.interp(t, v, cd), 0.0) / peak
+        if phi_rad is None:
+            raise ValueError("this IES file is not rotationally symmetric: f needs the C angle")
+        c = np.degrees(np.asarray(phi_rad, float)) % 360.0
+        t, c = np.broadcast_arrays(t, c)
+        j = np.clip(np.searchsorted(h, c, side="right") - 1, 0, h.size - 2)
+        wc = np.clip((c - h[j]) / (h[j + 1] - h[j]), 0.0, 1.0)
+        k = np.clip(np.searchsorted(v, t, side="right") - 1, 0, v.size - 2)
+        wv = np.clip((t - v[k]) / (v[k + 1] - v[k]), 0.0, 1.0)
+        val = ((1 - wc) * ((1 - wv) * cd[j, k] + wv * cd[j, k + 1])
+               + wc * ((1 - wv) * cd[j + 1, k] + wv * cd[j + 1, k + 1]))
+        return np.where(inside, val, 0.0) / peak
+
+
+def read_ies(path: Path, display: str) -> IesData:
+    """Read an IES LM-63 (1995/2002/2019) photometric file (TILT=NONE only)."""
+    text = read_text_bounded(path, display, 2 * 1024 * 1024)
+    lines = text.splitlines()
+    tilt_idx = next((i for i, ln in enumerate(lines) if ln.strip().upper().startswith("TILT=")), None)
+    if tilt_idx is None:
+        raise LbsceneUserError.single("LB203", "not an IES LM-63 file: no TILT= line", display,
+                                      expected="an IES LM-63 photometric file")
+    if lines[tilt_idx].strip().upper() != "TILT=NONE":
+        raise LbsceneUserError.single("LB203", "IES files with lamp tilt data are not supported",
+                                      display, tilt_idx + 1, 1, value=lines[tilt_idx].strip(),
+                                      expected="TILT=NONE")
+    try:
+        nums = [float(x) for x in " ".join(lines[tilt_idx + 1:]).replace(",", " ").split()]
+        _n_lamps, lm_per_lamp, mult, nv, nh = nums[0], nums[1], nums[2], int(nums[3]), int(nums[4])
+        rest = nums[13:]  # skip photometric type, units, dimensions, ballast factors, watts
+        v = np.array(rest[:nv])
+        h = np.array(rest[nv:nv + nh])
+        cd = np.array(rest[nv + nh: nv + nh + nv * nh]).reshape(nh, nv) * mult
+    except (ValueError, IndexError) as exc:
+        raise LbsceneUserError.single("LB203", f"malformed IES data: {exc}", display,
+                                      expected="IES LM-63 numeric block after TILT=NONE")
+    if cd.size != nv * nh or nv < 2 or np.any(np.diff(v) <= 0) or cd.max() <= 0:
+        raise LbsceneUserError.single("LB203", "malformed IES candela table", display,
+                                      expected="increasing vertical angles and positive candela")
+    if v[0] < 0 or v[-1] > 180:
+        raise LbsceneUserError.single("LB203", f"IES vertical angles {v[0]:g}..{v[-1]:g} outside 0..180°",
+                                      display, expected="type C vertical angles within 0..180°")
+    full = h[-1] > 180.0 and h[-1] <= 360.0       # full set, with or without its 360° plane
+    if h[0] != 0 or np.any(np.diff(h) <= 0) or not (nh == 1 or h[-1] in (90.0, 180.0) or full):
+        raise LbsceneUserError.single(
+            "LB203", f"IES horizontal angles {h[0]:g}..{h[-1]:g} are not a type C set", display,
+            expected="horizontal angles increasing from 0 and ending at 0 (rotational), 90 "
+                     "(quadrant), 180 (bilateral) or up to 360° (full; the 360° plane may be left out)")
+    return IesData(v, h, cd, lm_per_lamp)
+
+
+def ies_text(data: dict) -> str:
+    """An IES LM-63-2002 file (type C, TILT=NONE, multiplier 1) of an IR profile's ``data`` table.
+
+    Builds carry the lamp's photometry as a file (``ies/<lamp id>.ies``) for other tools;
+    the numbers are the IR's, so :func:`read_ies` gives the same table back.
+    """
+    v = [float(x) for x in data["vertical_deg"]]
+    h = [float(x) for x in data["horizontal_deg"]]
+    cd = [[float(x) for x in row] for row in data["candela"]]
+    fmt = lambda xs: " ".join(f"{x:.10g}" for x in xs)  # noqa: E731
+    lines = ["IESNA:LM-63-2002", "[MANUFAC] written by lbscene from the scene IR", "TILT=NONE",
+             f"1 {float(data['lumens_per_lamp']):.10g} 1 {len(v)} {len(h)} 1 2 0 0 0", "1 1 0",
+             fmt(v), fmt(h)] + [fmt(row) for row in cd]
+    return "\n".join(lines) + "\n"
+
+
+def profile_shape(profile, resolve=None):
+    """Shape function f(θ[, φ]) of a schema profile node (``Lamp.profile``) or IR dict."""
+    p = profile if isinstance(profile, dict) else profile.model_dump()
+    t = p["type"]
+    if t == "isotropic":
+        return IsotropicShape()
+    if t == "gaussian":
+        return GaussianShape(float(p["sigma_deg"]))
+    if t == "cosine_power":
+        return CosinePowerShape(float(p["exponent"]))
+    if t == "ies":
+        if "data" in p:  # IR form: the table is carried inline
+            d = p["data"]
+            return IesShape(IesData(np.array(d["vertical_deg"]), np.array(d["horizontal_deg"]),
+                                    np.array(d["candela"]), float(d["lumens_per_lamp"])))
+        path = resolve(p["path"])
+        return IesShape(read_ies(path, p["path"]))
+    raise ValueError(f"unknown profile type {t!r}")
+
+
+def solid_angle_weight_sr(shape, n: int = 2049) -> float:
+    """∫ f dΩ over the sphere (sr) of a modulation alone: flux of a point = I0 · this."""
+    if getattr(shape, "two_d", False):
+        from lbscene.engine.light.emitters import solid_angle_weight_sr as full
+
+        return full("point", (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), shape)
+    theta = np.linspace(0.0, np.pi, n)
+    f = np.asarray(shape(theta), float)
+    return float(2.0 * np.pi * np.trapz(f * np.sin(theta), theta))

@@ -1,0 +1,509 @@
+"""
+Mitsuba 3 as an independent truth: the compiled booth rendered by a spectral path tracer.
+
+The forward model, the Monte Carlo :mod:`~lbscene.engine.truth.reference` engine
+and the Cycles bake all start from lbscene's own lamp and transport code; a test
+that compares two of them can pass while both share one wrong assumption.  This
+provider hands the *declared physics* of a :class:`~lbscene.engine.scene.ir.SceneIR` to
+Mitsuba 3 (``scalar_spectral`` variant, ``path`` integrator, unbounded depth with
+Russian roulette) and measures illuminance there.
+
+What the booth becomes
+----------------------
+===================  ==========================================================
+booth element        Mitsuba 3
+===================  ==========================================================
+interior surfaces    triangle meshes, ``twosided`` ``diffuse`` with the material's
+                     1 nm reflectance (black when ``interreflection`` is off)
+tube                 ``cylinder`` (open, no end caps) with an ``area`` emitter of
+                     radiance :math:`L(λ) = I(λ) / (2 r ℓ)`
+panel                ``rectangle`` (length along ``axis`` × width along
+                     ``aim × axis``) emitting toward ``aim``, :math:`L = I / (ℓ w)`
+bulb                 ``sphere``, :math:`L = I / (π r^2)`
+point                ``point`` emitter of intensity :math:`I(λ)`
+lamp bodies          tube, panel and bulb shapes are black (absorbing), as in the
+                     forward model; a lamp that is off stays as a black body
+occluders            black (or declared-material) ``twosided`` rectangles; an
+                     aperture plate is the frame around its opening
+                     (``aperture_occlusion`` on)
+diffuser plate       a closed box of ``roughdielectric`` (GGX,
+                     :math:`α = \\text{roughness}^2` as in Blender's Glass BSDF,
+                     the declared ``ior`` and ``thickness_mm``; mid-plane at
+                     ``z_mm``) (``diffuser`` on)
+===================  ==========================================================
+
+:math:`I(λ)` is the lamp's peak spectral intensity from the IR
+(``intensity_scale_W_sr_nm × spd``, times its dimming level and its filter when
+``spectral_filter`` is on), perpendicular to a tube's axis and along a panel's
+normal; lengths in metres in these formulas.  Scene coordinates stay in
+millimetres: radiance-driven emitters do not depend on the length unit, the
+point emitter's intensity is multiplied by 10⁶ (mm² → m²).
+
+A declared diffuser transmittance below the clear slab's Fresnel value
+:math:`T_0` is honoured as bulk absorption, a factor
+:math:`\\sqrt{T/T_0}` on each crossing of an interface
+(``specular_transmittance``); a transmittance above :math:`T_0` is refused (no
+slab of that ior transmits it).
+
+Measurement
+-----------
+Each receiver (point :math:`p`, unit normal :math:`n`) is a disc of radius
+``DISC_RADIUS_MM`` with a white Lambertian BSDF at :math:`p + δ n`, seen by a
+``radiancemeter`` just above it looking along :math:`-n`.  Its exitance gives the
+irradiance :math:`E(λ) = π L(λ)` with next-event estimation reaching the lamps.
+The film is a ``specfilm`` whose band is :math:`V(λ)`, so
+
+.. math:: E_v = 683\\,\\mathrm{lm/W} \\cdot π \\int L(λ) V(λ)\\, dλ .
+
+Mitsuba accumulates film samples in float32, so each call renders at most
+``MAX_SPP_PER_CALL`` samples and ``passes`` calls with their own seeds are
+averaged; the spread of the passes gives the Monte Carlo standard error.
+
+Effects Mitsuba cannot represent (end falloff, reflectors, non-isotropic angular
+profiles, meter cosine error, per-lamp occluders, a Lambertian diffuse-fraction
+plate, glossy materials) are refused with ``LB603``: the provider never
+approximates silently.
+
+Examples
+--------
+>>> from lbscene.engine.truth.synthetic import truth_engine          # doctest: +SKIP
+>>> truth = truth_engine(ir, "FL", {"interreflection": {}}, provider="mitsuba", spp=4096)  # doctest: +SKIP
+>>> E_lx, se_lx = truth.illuminance_with_error_lx([[0, 0, 0]])          # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lbscene.engine.files.diagnostics import LbsceneUserError
+
+__all__ = ["MitsubaTruth", "MitsubaResult", "MAX_SPP_PER_CALL", "DISC_RADIUS_MM", "mitsuba_version",
+           "SUPPORTED_EFFECTS"]
+
+K_M = 683.0
+#: float32 film accumulation loses small samples beyond this (see the module docstring)
+MAX_SPP_PER_CALL = 65536
+#: measuring disc: small enough not to shade the booth, large enough for float32 at booth scale
+DISC_RADIUS_MM = 0.05
+#: disc lifted off the receiver point so that it never coincides with a booth surface
+DISC_LIFT_MM = 0.02
+VARIANT = "scalar_spectral"
+
+#: effects the provider represents (with the restrictions checked in ``_refusals``)
+SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
+                               "lamp_spectrum_shift",
+                               "angular_profile", "detector_cosine_error"})
+
+
+def _mi():
+    import mitsuba as mi
+
+    if mi.variant() != VARIANT:
+        mi.set_variant(VARIANT)
+    return mi
+
+
+def mitsuba_version() -> str:
+    import mitsuba as mi
+
+    return mi.__version__
+
+
+def _spectrum(values_1nm) -> dict:
+    """A 1 nm array on 360–830 nm as a Mitsuba ``regular`` spectrum."""
+    v = np.clip(np.broadcast_to(np.asarray(values_1nm, float), (471,)), 0.0, None)
+    if np.ptp(v) == 0.0:
+        # a constant (zero included: a 'regular' spectrum needs probability mass to sample from)
+        return {"type": "uniform", "value": float(v[0])}
+    return {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
+            "values": ", ".join(f"{x:.9g}" for x in v)}
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def _frame(x, y, z, origin, sx, sy, sz):
+    """4×4 to_world: local (±1, ±1, ±1) → origin + sx·x + sy·y + sz·z."""
+    m = np.eye(4)
+    m[:3, 0] = np.asarray(x) * sx
+    m[:3, 1] = np.asarray(y) * sy
+    m[:3, 2] = np.asarray(z) * sz
+    m[:3, 3] = origin
+    return m
+
+
+def _clear_slab_T(ior: float) -> float:
+    """Normal-incidence transmittance of a clear non-absorbing slab: (1−R)/(1+R), R = ((n−1)/(n+1))²."""
+    r = ((ior - 1.0) / (ior + 1.0)) ** 2
+    return (1.0 - r) / (1.0 + r)
+
+
+@dataclass(frozen=True)
+class MitsubaResult:
+    """Illuminance at receivers with its Monte Carlo standard error (both lx)."""
+
+    illuminance_lx: np.ndarray
+    std_error_lx: np.ndarray
+    spp: int                       # samples per pass
+    passes: np.ndarray             # passes averaged, per receiver
+
+
+def _coplanar_groups(P, N, tol_mm: float = 1e-6) -> list[np.ndarray]:
+    """Receivers split into groups that share one plane and normal.
+
+    The measuring discs of one group lie in one plane and face the same way, so no disc can
+    shade another's view of the booth; receivers in different planes (a disc above another,
+    say) are rendered in separate scenes.
+    """
+    keys: dict = {}
+    for i, (p, n) in enumerate(zip(P, N)):
+        k = (tuple(np.round(n, 9)), round(float(p @ n) / tol_mm) * tol_mm)
+        keys.setdefault(k, []).append(i)
+    return [np.asarray(v) for v in keys.values()]
+
+
+class MitsubaTruth:
+    """Illuminance of a booth rendered by Mitsuba 3.
+
+    Parameters
+    ----------
+    ir
+        The compiled booth.
+    lighting
+        Lighting configuration (default: the booth's first).
+    effects
+        The physics to include ``{id: params}`` (default: the booth's ``effects:``).
+    spp
+        Samples per receiver and pass (at most :data:`MAX_SPP_PER_CALL`).
+    passes
+        Independent passes (own seeds) averaged; their spread gives the standard error.
+    seed
+        Seed of the first pass.
+    allow_lamp_specific_occluders
+        An occluder declared for some lamps only cannot exist physically; by default
+        it is refused, with ``True`` it blocks every lamp (and inter-reflected light).
+    """
+
+    def __init__(self, ir, lighting: str | None = None, *, effects: dict | None = None,
+                 spp: int = 16384, passes: int = 4, seed: int = 0,
+                 allow_lamp_specific_occluders: bool = False):
+        if not 1 <= spp <= MAX_SPP_PER_CALL:
+            raise ValueError(f"spp must be in 1..{MAX_SPP_PER_CALL} (float32 film), got {spp}")
+        if passes < 2:
+            raise ValueError("passes must be >= 2 (the standard error comes from their spread)")
+        self.ir = ir
+        self.lighting = lighting or next(iter(ir.lighting))
+        self.effects = dict(ir.effects if effects is None else effects)
+        self.spp, self.passes, self.seed = int(spp), int(passes), int(seed)
+        self.allow_lamp_specific_occluders = allow_lamp_specific_occluders
+        self._refuse(self._refusals(meter=False))
+
+    # ------------------------------------------------------------------ what cannot be said
+    def _refusals(self, meter: bool) -> list[str]:
+        ir, fx = self.ir, self.effects
+        out = []
+        for eid in sorted(fx):
+            if eid not in SUPPORTED_EFFECTS:
+                out.append(f"effect {eid!r} has no Mitsuba representation")
+        if meter and "detector_cosine_error" in fx:
+            out.append("effect 'detector_cosine_error' (a meter response) has no Mitsuba "
+                       "representation: ask for meter=False")
+        if "angular_profile" in fx:
+            set_params = sorted(k for k, v in (fx["angular_profile"] or {}).items() if v not in (None, {}, [], ()))
+            if set_params:
+                out.append(f"angular_profile parameters {set_params} have no Mitsuba representation "
+                           "(emitters are Lambertian shapes)")
+        for lamp, _ in ir.lamps_on(self.lighting):
+            ptype = (lamp.profile or {}).get("type", "isotropic")
+            if "angular_profile" in fx and ptype != "isotropic":
+                out.append(f"lamp {lamp.id!r}: angular profile {ptype!r} has no Mitsuba representation "
+                           "(emitters are Lambertian shapes)")
+            if lamp.kind == "tube" and (lamp.length_mm <= 0 or lamp.radius_mm <= 0):
+                out.append(f"lamp {lamp.id!r}: a tube needs length_mm > 0 and radius_mm > 0")
+            if lamp.kind == "panel" and (lamp.length_mm <= 0 or lamp.width_mm <= 0):
+                out.append(f"lamp {lamp.id!r}: a panel needs length_mm > 0 and width_mm > 0")
+            if lamp.kind == "bulb" and lamp.radius_mm <= 0:
+                out.append(f"lamp {lamp.id!r}: a bulb needs radius_mm > 0")
+        for s in ir.surfaces:
+            m = ir.materials[s.material]
+            if m.type != "diffuse" and "interreflection" in fx:
+                out.append(f"surface {s.id!r}: material {m.id!r} is {m.type!r}; only diffuse "
+                           "materials have a Mitsuba representation here")
+        if "aperture_occlusion" in fx and not self.allow_lamp_specific_occluders:
+            on = {lp.id for lp, _ in ir.lamps_on(self.lighting)}
+            for o in ir.occluders:
+                if o.lamps is not None and not on <= set(o.lamps):
+                    out.append(f"occluder {o.id!r} blocks only lamps {list(o.lamps)}: real geometry "
+                               "blocks every lamp (pass allow_lamp_specific_occluders=True to accept that)")
+        if "aperture_occlusion" in fx:
+            for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
+                if float(fx["aperture_occlusion"].get(k, 1.0) or 1.0) != 1.0:
+                    out.append(f"aperture_occlusion {k} != 1 has no Mitsuba representation")
+        if "diffuser" in fx and ir.diffuser is not None:
+            d, p = ir.diffuser, fx["diffuser"]
+            sc = d.scattering
+            if sc.get("type") != "roughness":
+                out.append(f"diffuser scattering {sc.get('type')!r} has no Mitsuba representation "
+                           "(a rough dielectric slab, scattering type 'roughness', has)")
+            if p.get("diffuse_fraction"):
+                out.append("diffuser diffuse_fraction override has no Mitsuba representation")
+            T = d.transmittance.array_1nm * float(p.get("transmittance_scale", 1.0) or 1.0)
+            t0 = _clear_slab_T(d.ior)
+            if np.max(T) > t0 + 0.005:
+                out.append(f"diffuser transmittance {np.max(T):.3f} exceeds the clear slab's {t0:.3f} "
+                           f"for ior {d.ior:g}: no slab transmits that")
+        return out
+
+    @staticmethod
+    def _refuse(problems: list[str]) -> None:
+        if problems:
+            raise LbsceneUserError.single(
+                "LB603", "the Mitsuba truth cannot represent this booth: " + "; ".join(problems))
+
+    # ------------------------------------------------------------------ scene
+    def _lamp_shapes(self) -> dict:
+        ir, fx = self.ir, self.effects
+        out = {}
+        on = dict((lp.id, level) for lp, level in ir.lamps_on(self.lighting))
+        black = {"type": "diffuse", "reflectance": {"type": "uniform", "value": 0.0}}
+        for lamp in ir.lamps:
+            level = on.get(lamp.id, 0.0)
+            if level <= 0.0:
+                # a lamp that is off is still a body in the way (black, as the model's)
+                from lbscene.engine.light.geometry import lamp_body
+
+                if lamp.mount != "booth" or lamp_body(lamp) is None:
+                    continue
+                shape = self._lamp_shape(lamp, np.zeros(471))
+                shape.pop("emitter")
+                out[f"body_{lamp.id}"] = dict(shape, bsdf=black)
+                continue
+            from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
+
+            I = level * lamp_spectrum_1nm(ir, lamp, fx)  # W/sr/nm, shifted and filtered as declared
+            shape = self._lamp_shape(lamp, I)
+            if lamp.kind != "point":
+                shape["bsdf"] = black
+            out[f"lamp_{lamp.id}"] = shape
+        return out
+
+    def _lamp_shape(self, lamp, I) -> dict:
+        """The Mitsuba shape (with its area emitter) of one lamp of peak intensity ``I`` (W/sr/nm)."""
+        p = np.asarray(lamp.position_mm, float)
+        ax = _unit(lamp.axis)
+        if lamp.kind == "tube":
+            r_m, l_m = lamp.radius_mm * 1e-3, lamp.length_mm * 1e-3
+            return {
+                "type": "cylinder", "p0": (p - ax * lamp.length_mm / 2).tolist(),
+                "p1": (p + ax * lamp.length_mm / 2).tolist(), "radius": float(lamp.radius_mm),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (2 * r_m * l_m))}}
+        if lamp.kind == "panel":
+            aim = _unit(lamp.aim)
+            wdir = _unit(np.cross(aim, ax))
+            l_m, w_m = lamp.length_mm * 1e-3, lamp.width_mm * 1e-3
+            return {
+                "type": "rectangle",
+                "to_world": _mi().ScalarTransform4f(
+                    _frame(ax, wdir, aim, p, lamp.length_mm / 2, lamp.width_mm / 2, 1.0).tolist()),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (l_m * w_m))}}
+        if lamp.kind == "bulb":
+            r_m = lamp.radius_mm * 1e-3
+            return {
+                "type": "sphere", "center": p.tolist(), "radius": float(lamp.radius_mm),
+                "emitter": {"type": "area", "radiance": _spectrum(I / (np.pi * r_m ** 2))}}
+        return {"type": "point", "position": p.tolist(), "intensity": _spectrum(I * 1e6)}
+
+    def _bsdf(self, reflectance_1nm) -> dict:
+        return {"type": "twosided", "material": {"type": "diffuse",
+                                                  "reflectance": _spectrum(reflectance_1nm)}}
+
+    def _surfaces(self) -> dict:
+        mi = _mi()
+        ir = self.ir
+        black = np.zeros(471)
+        out = {}
+        for s in ir.surfaces:
+            refl = ir.materials[s.material].reflectance.array_1nm if "interreflection" in self.effects \
+                else black
+            v = s.vertex_array.astype(np.float32)
+            t = s.triangle_array.astype(np.uint32)
+            props = mi.Properties()
+            props["bsdf"] = mi.load_dict(self._bsdf(refl))
+            mesh = mi.Mesh(f"surface_{s.id}", len(v), len(t), props=props)
+            params = mi.traverse(mesh)
+            # the buffers' own types: scalar variants use dynamic drjit arrays, not mi.Float
+            params["vertex_positions"] = type(params["vertex_positions"])(v.ravel())
+            params["faces"] = type(params["faces"])(t.ravel())
+            params.update()
+            out[f"surface_{s.id}"] = mesh
+        return out
+
+    def _occluders(self) -> dict:
+        if "aperture_occlusion" not in self.effects:
+            return {}
+        from lbscene.engine.light.geometry import OCCLUDER_OFFSET_MM, plate_pieces
+
+        ir = self.ir
+        out = {}
+        for o in ir.occluders:
+            n = _unit(o.normal)
+            u = np.asarray(o.u_axis, float)
+            u = _unit(u - n * (u @ n))
+            v = np.cross(n, u)
+            # a hair to the side the normal points to, as the Cycles bake draws it
+            c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * n
+            refl = ir.materials[o.material].reflectance.array_1nm if o.material else np.zeros(471)
+            hole = (o.opening_mm[0] / 2, o.opening_mm[1] / 2) \
+                if o.type == "aperture_plate" and o.opening_mm is not None else None
+            for k, (u0, u1, v0, v1) in enumerate(plate_pieces((o.size_mm[0] / 2, o.size_mm[1] / 2), hole)):
+                cu, cv, su, sv = (u0 + u1) / 2, (v0 + v1) / 2, (u1 - u0) / 2, (v1 - v0) / 2
+                out[f"occluder_{o.id}_{k}"] = {
+                    "type": "rectangle",
+                    "to_world": _mi().ScalarTransform4f(_frame(u, v, n, c + cu * u + cv * v, su, sv, 1.0)
+                                                       .tolist()),
+                    "bsdf": self._bsdf(refl)}
+        return out
+
+    def _diffuser(self) -> dict:
+        d = self.ir.diffuser
+        if "diffuser" not in self.effects or d is None:
+            return {}
+        p = self.effects["diffuser"]
+        T = np.clip(d.transmittance.array_1nm * float(p.get("transmittance_scale", 1.0) or 1.0), 0, 1)
+        per_interface = np.sqrt(np.clip(T / _clear_slab_T(d.ior), 0.0, 1.0))
+        alpha = float(d.scattering["roughness"]) ** 2
+        centre = (d.centre_mm[0], d.centre_mm[1], d.z_mm)
+        bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": max(alpha, 1e-4),
+                "int_ior": float(d.ior), "ext_ior": 1.0}
+        if np.any(per_interface < 0.9999):
+            bsdf["specular_transmittance"] = _spectrum(per_interface)
+        return {"diffuser": {
+            "type": "cube",
+            "to_world": _mi().ScalarTransform4f(
+                _frame((1, 0, 0), (0, 1, 0), (0, 0, 1), centre, d.size_mm[0] / 2, d.size_mm[1] / 2,
+                       d.thickness_mm / 2).tolist()),
+            "bsdf": bsdf}}
+
+    def scene_dict(self, points, normals, film_bands: dict | None = None) -> dict:
+        """The Mitsuba scene (dict) with one measuring disc and radiancemeter per receiver.
+
+        ``film_bands``: name → 1 nm sensitivity of the film's channels (default: ``{'V': V(λ)}``).
+        """
+        from lbscene.engine.spectra.evaluate import photopic_1nm
+
+        if film_bands is None:
+            film_bands = {"V": photopic_1nm()}
+        P = np.asarray(points, float)
+        N = np.asarray(normals, float)
+        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
+        scene.update(self._surfaces())
+        scene.update(self._lamp_shapes())
+        scene.update(self._occluders())
+        scene.update(self._diffuser())
+        film = {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}
+        for k, (name, sens) in enumerate(film_bands.items()):
+            # a sensitivity must be a sampled spectrum (specfilm refuses a uniform one)
+            film[f"band_{k:03d}_{name}"] = {"type": "regular", "wavelength_min": 360.0, "wavelength_max": 830.0,
+                                            "values": ", ".join(f"{x:.9g}" for x in np.clip(sens, 0, None))}
+        for i, (p, n) in enumerate(zip(P, N)):
+            a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+            u = _unit(a - n * (a @ n))
+            v = np.cross(n, u)
+            scene[f"meter_disc_{i:05d}"] = {
+                "type": "disk",
+                "to_world": _mi().ScalarTransform4f(
+                    _frame(u, v, n, p + DISC_LIFT_MM * n, DISC_RADIUS_MM, DISC_RADIUS_MM, 1.0).tolist()),
+                "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 1.0}}}
+            scene[f"meter_{i:05d}"] = {
+                "type": "radiancemeter", "origin": (p + 2 * DISC_LIFT_MM * n).tolist(),
+                "direction": (-n).tolist(), "film": film,
+                "sampler": {"type": "independent", "sample_count": self.spp}}
+        return scene
+
+    # ------------------------------------------------------------------ measurement
+    def _receivers(self, points, normals):
+        P = np.atleast_2d(np.asarray(points, float))
+        if P.shape[1] == 2:
+            P = np.c_[P, np.zeros(len(P))]
+        N = np.tile([0, 0, 1.0], (len(P), 1)) if normals is None else np.broadcast_to(
+            np.asarray(normals, float), P.shape).copy()
+        return P, N / np.linalg.norm(N, axis=1, keepdims=True)
+
+    def _render(self, P, N, film_bands: dict, scale, target_rel_error, max_passes):
+        """Per receiver and film channel: mean × ``scale``, its standard error, passes used.
+        The stopping rule looks at the worst channel."""
+        mi = _mi()
+        C = len(film_bands)
+        mean, se = np.zeros((len(P), C)), np.zeros((len(P), C))
+        used = np.zeros(len(P), int)
+        scale = np.broadcast_to(np.asarray(scale, float), (C,))
+        for group in _coplanar_groups(P, N):
+            scene = mi.load_dict(self.scene_dict(P[group], N[group], film_bands))
+            for i, sensor in zip(group, scene.sensors()):
+                vals = []
+                while True:
+                    k = len(vals)
+                    img = mi.render(scene, sensor=sensor, spp=self.spp, seed=self.seed + 7919 * k + int(i))
+                    vals.append(scale * np.asarray(img, float).ravel()[:C])
+                    if len(vals) < self.passes:
+                        continue
+                    v = np.asarray(vals)
+                    m, s = v.mean(0), v.std(0, ddof=1) / np.sqrt(len(v))
+                    if target_rel_error is None or np.all(s <= target_rel_error * np.abs(m)) \
+                            or len(v) >= max_passes:
+                        break
+                mean[i], se[i], used[i] = m, s, len(v)
+        return mean, se, used
+
+    def illuminance_with_error_lx(self, points, normals=None, *, target_rel_error: float | None = None,
+                                  max_passes: int = 64) -> MitsubaResult:
+        """Illuminance (lx) at ``points`` (mm) on surfaces facing ``normals`` (default +z), with
+        the standard error of its Monte Carlo estimate.
+
+        ``target_rel_error``: keep adding passes (each ``spp`` samples, own seed) to a receiver
+        until its standard error is at most this fraction of its value, or ``max_passes``.
+        """
+        from lbscene.engine.spectra.evaluate import photopic_1nm
+
+        P, N = self._receivers(points, normals)
+        m, s, used = self._render(P, N, {"V": photopic_1nm()}, K_M * np.pi, target_rel_error, max_passes)
+        return MitsubaResult(m[:, 0], s[:, 0], self.spp, used)
+
+    def spectral_irradiance_bands(self, points, normals=None, *, target_rel_error: float | None = None,
+                                  max_passes: int = 64) -> tuple[np.ndarray, np.ndarray]:
+        """Band-mean spectral irradiance (W·m⁻²·nm⁻¹) on the IR's band grid, shape (M, B), and its
+        standard error: film channels are the bands' box functions, E_b = π ∫_b L dλ / Δλ_b."""
+        from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
+
+        P, N = self._receivers(points, normals)
+        edges = self.ir.grid.edges_nm
+        bands = {}
+        for k in range(len(edges) - 1):
+            # 1 nm samples inside the band; the edge samples count half, as a box integrated on 1 nm
+            w = ((WL > edges[k]) & (WL < edges[k + 1])).astype(float)
+            w[(WL == edges[k]) | (WL == edges[k + 1])] = 0.5
+            bands[f"b{k:02d}"] = w
+        width = np.diff(edges)
+        m, s, _ = self._render(P, N, bands, np.pi / width, target_rel_error, max_passes)
+        return m, s
+
+    def white_tile_radiance_bands(self, point=None, normal=(0.0, 0.0, 1.0), reflectance_bands=1.0):
+        """Band-mean spectral radiance (W·sr⁻¹·m⁻²·nm⁻¹) of a Lambertian tile: ρ_b E_b / π."""
+        p = self.ir.sample_position_mm if point is None else point
+        E, _ = self.spectral_irradiance_bands([p], [normal])
+        return np.asarray(reflectance_bands) * E[0] / np.pi
+
+    def illuminance_lx(self, points, normals=None, meter: bool = True) -> np.ndarray:
+        """Illuminance (lx); ``meter`` is accepted for the truth-provider interface (an ideal
+        cosine meter: a booth with ``detector_cosine_error`` is refused)."""
+        self._refuse(self._refusals(meter=bool(np.any(meter))))
+        return self.illuminance_with_error_lx(points, normals).illuminance_lx
+
+    def spectral_irradiance_1nm(self, points, normals=None, meter=False):
+        raise NotImplementedError(
+            "the Mitsuba truth measures illuminance (V(λ)-weighted); spectral irradiance at 1 nm "
+            "needs one film band per nanometre and is not provided")

@@ -1,0 +1,212 @@
+"""
+The visual-test protocol: a session's cases, its randomised balanced trial order, and
+the observers' results files (CSV or JSON, as the web viewer's test mode writes them).
+
+Order (``order.method: balanced``): one *block* per observer and repeat; each block shows
+every case exactly once.  Block orders are cyclic shifts of one seeded permutation of
+the cases, with the shifts spread evenly over the blocks and dealt to the blocks in a
+seeded random order: across blocks, every case is seen at evenly spread serial positions
+(a Latin square when the number of blocks equals the number of cases; with more blocks
+than cases each position holds each case ⌊blocks/cases⌋ or ⌈blocks/cases⌉ times).
+Neighbours stay the same in every block (no carry-over balancing).
+
+Examples
+--------
+>>> plan = balanced_blocks(3, 3, seed=1)
+>>> [sorted(b) for b in plan] == [[0, 1, 2]] * 3          # each case once per block
+True
+>>> sorted(b[0] for b in plan)                             # and once in each position
+[0, 1, 2]
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError
+
+__all__ = [
+    "RESULTS_FORMAT",
+    "RESULT_COLUMNS",
+    "LoadedSession",
+    "load_session",
+    "balanced_blocks",
+    "plan_trials",
+    "read_results",
+]
+
+RESULTS_FORMAT = "lbscene.visual_results"
+#: Columns of a results CSV (the viewer writes them in this order).
+RESULT_COLUMNS = ("session", "observer", "repeat", "order", "lighting", "geometry", "sample", "display",
+                  "score", "response_time_ms")
+
+
+@dataclass
+class LoadedSession:
+    """A session file, its samples (:class:`~lbscene.runtimes.scene.SampleSpec`, in the
+    file's order) and its trials."""
+
+    doc: object
+    samples: list
+    trials: list[dict]
+    hash: str
+
+    @property
+    def model(self):
+        return self.doc.model
+
+    @property
+    def cases(self) -> list[tuple[str, str, str]]:
+        """(lighting, geometry, sample name), in the file's order."""
+        return [(lt, g, s.name) for lt in self.model.lightings for g in self.model.geometries
+                for s in self.samples]
+
+    def to_viewer(self) -> dict:
+        """What the viewer's test mode needs (embedded in the web export)."""
+        m = self.model
+        return {"name": m.name, "hash": self.hash, "observers": [{"id": o.id} for o in m.observers],
+                "repeats": m.repeats, "response": m.response.model_dump(), "trials": self.trials}
+
+
+def balanced_blocks(n_cases: int, n_blocks: int, seed: int = 0) -> list[list[int]]:
+    """Orders of ``n_cases`` cases for ``n_blocks`` blocks (see the module's docstring)."""
+    rng = np.random.default_rng(seed)
+    base = rng.permutation(n_cases)
+    shifts = [(b * n_cases) // n_blocks % n_cases for b in range(n_blocks)]
+    deal = rng.permutation(n_blocks)
+    out = []
+    for b in range(n_blocks):
+        s = shifts[deal[b]]
+        order = np.roll(base, -s)
+        out.append([int(i) for i in order])
+    return out
+
+
+def plan_trials(session_model, sample_names: list[str]) -> list[dict]:
+    """Every trial of a session: observer, repeat (1…), order (1… within the observer's
+    session), lighting, geometry, sample."""
+    m = session_model
+    cases = [(lt, g, s) for lt in m.lightings for g in m.geometries for s in sample_names]
+    blocks = [(o.id, r) for o in m.observers for r in range(1, m.repeats + 1)]
+    orders = balanced_blocks(len(cases), len(blocks), m.order.seed)
+    trials = []
+    counter: dict[str, int] = {}
+    for (obs, rep), order in zip(blocks, orders):
+        for i in order:
+            counter[obs] = counter.get(obs, 0) + 1
+            lt, g, s = cases[i]
+            trials.append({"observer": obs, "repeat": rep, "order": counter[obs], "lighting": lt,
+                           "geometry": g, "sample": s})
+    return trials
+
+
+def load_session(path: Path, allowed_dirs=()) -> LoadedSession:
+    """Read and check a session file (located diagnostics for every mistake)."""
+    from lbscene.engine.files.load import load_document
+    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.schemas.sample import Sample
+    from lbscene.schemas.visual_session import VisualSession
+
+    doc = load_document(Path(path), VisualSession, allowed_dirs=allowed_dirs)
+    samples = []
+    for i, ref in enumerate(doc.model.samples):
+        sdoc = load_document(doc.resolve(ref), Sample, allowed_dirs=allowed_dirs)
+        samples.append(SampleSpec.from_document(sdoc))
+    names = [s.name for s in samples]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise LbsceneUserError(Diagnostic("LB702", f"two samples of the session have the name {dup[0]!r}",
+                                          doc.locate("samples"), value=", ".join(dup),
+                                          expected="samples with distinct names (cases are named by them)"))
+    trials = plan_trials(doc.model, names)
+    digest = hashlib.sha256(json.dumps({"session": doc.model.model_dump(mode="json"), "samples": [
+        s.digest() for s in samples]}, sort_keys=True).encode()).hexdigest()[:16]
+    return LoadedSession(doc=doc, samples=samples, trials=trials, hash=digest)
+
+
+def _err(code, message, file, line=0, **kw):
+    # a CSV row (or JSON line) is located at its first column
+    return LbsceneUserError.single(code, message, file, line, 1 if line else 0, **kw)
+
+
+def read_results(paths, session: LoadedSession) -> list[dict]:
+    """Rows of results files (CSV with :data:`RESULT_COLUMNS` or the viewer's JSON),
+    checked against the session: each row gets ``case`` = (lighting, geometry, sample)."""
+    from lbscene.engine.files.load import display_path
+
+    m = session.model
+    cases = set(session.cases)
+    observers = {o.id for o in m.observers}
+    r = m.response
+    rows: list[dict] = []
+    seen: dict[tuple, str] = {}
+    for path in paths:
+        path = Path(path)
+        shown = display_path(path)
+        if not path.is_file():
+            raise _err("LB010", "file not found", shown)
+        text = path.read_text(encoding="utf-8-sig")
+        if path.suffix.lower() == ".json":
+            try:
+                d = json.loads(text)
+            except ValueError as exc:
+                raise _err("LB710", f"not JSON: {exc.msg}", shown, exc.lineno, expected="a results file")
+            if not isinstance(d, dict) or d.get("format") != RESULTS_FORMAT:
+                raise _err("LB710", f"not an {RESULTS_FORMAT} file", shown, 1,
+                           expected="the JSON the viewer's test mode writes")
+            if d.get("session") != m.name:
+                raise _err("LB711", f"results of session {d.get('session')!r}, not {m.name!r}", shown, 1,
+                           expected=f"results of session {m.name!r}")
+            items = [(None, it) for it in d.get("responses", [])]
+        else:
+            reader = csv.DictReader(io.StringIO(text))
+            missing = [c for c in ("observer", "repeat", "lighting", "geometry", "sample", "score")
+                       if c not in (reader.fieldnames or [])]
+            if missing:
+                raise _err("LB710", f"missing column(s): {', '.join(missing)}", shown, 1,
+                           expected=f"a CSV with columns {', '.join(RESULT_COLUMNS)}")
+            items = [(reader.line_num, row) for row in reader]
+            # DictReader.line_num is read after the row: recompute the physical lines
+            items = [(i + 2, row) for i, (_, row) in enumerate(items)]
+        for line, it in items:
+            where = line or 0
+            if it.get("session") not in (None, "", m.name):
+                raise _err("LB711", f"row of session {it.get('session')!r}, not {m.name!r}", shown, where,
+                           expected=f"results of session {m.name!r}")
+            try:
+                score = float(it["score"])
+                repeat = int(it["repeat"])
+            except (TypeError, ValueError, KeyError):
+                raise _err("LB710", "score and repeat must be numbers", shown, where,
+                           value=f"score={it.get('score')!r}, repeat={it.get('repeat')!r}")
+            case = (str(it["lighting"]), str(it["geometry"]), str(it["sample"]))
+            if case not in cases:
+                raise _err("LB711", f"case {' / '.join(case)} is not in session {m.name!r}", shown, where,
+                           expected="a lighting, geometry and sample of the session")
+            if str(it["observer"]) not in observers:
+                raise _err("LB711", f"observer {it['observer']!r} is not in session {m.name!r}", shown, where,
+                           expected=f"one of {', '.join(sorted(observers))}")
+            if r.type == "grey_scale" and not (r.min - 1e-9 <= score <= r.max + 1e-9):
+                raise _err("LB710", f"score {score:g} is outside the grey scale {r.min:g}–{r.max:g}", shown, where)
+            if r.type == "delta_e_estimate" and score < 0:
+                raise _err("LB710", f"ΔE estimate {score:g} is negative", shown, where)
+            key = (str(it["observer"]), repeat, case)
+            if key in seen:
+                raise _err("LB711", f"second answer of observer {key[0]} to case {' / '.join(case)} in repeat "
+                                    f"{repeat} (first in {seen[key]})", shown, where,
+                           expected="one answer per observer, repeat and case (each results file once)")
+            seen[key] = shown + (f":{where}" if where else "")
+            rt = it.get("response_time_ms")
+            rows.append({"observer": str(it["observer"]), "repeat": repeat, "case": case, "score": score,
+                         "response_time_ms": float(rt) if rt not in (None, "") else float("nan"),
+                         "source": shown})
+    if not rows:
+        raise _err("LB710", "no responses in the results", ", ".join(display_path(Path(p)) for p in paths))
+    return rows
