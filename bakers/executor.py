@@ -83,10 +83,11 @@ def clean_stale_temps(out_dir: Path) -> list[Path]:
 
 def _child_env() -> dict:
     env = dict(os.environ)
-    # the child must import the same lbscene as this process
-    import lbscene
+    # the child must import the same lbscene as this process (located, not imported: the
+    # package's __init__ loads the API, a layer above the bakers)
+    from importlib.util import find_spec
 
-    root = str(Path(lbscene.__file__).resolve().parents[1])
+    root = str(Path(find_spec("lbscene").origin).resolve().parents[1])
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env

@@ -331,7 +331,7 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     emitters = []
     for lamp, level in ir.lamps_on(lighting):
         # shifted and filtered as the forward model's emitters are (one definition)
-        from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
+        from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
 
         spec = lamp_spectrum_1nm(ir, lamp, effects) * float(level)
         bands = g.integrate(spec)
@@ -421,17 +421,17 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
         v, t = _rect_quads((d.centre_mm[0], d.centre_mm[1], d.z_mm), (0, 0, -1), (1, 0, 0),
                            (d.size_mm[0] / 2, d.size_mm[1] / 2))
         if sc.get("type") == "roughness":
-            from lbscene.engine.light.effects.catalog import _rough_slab, _slab_relative
-            from lbscene.engine.light.effects.physics import fresnel_slab_transmittance
+            from lbscene.engine.light.plates import plate_slab, slab_relative
+            from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
 
             r = float(sc["roughness"])
             c60 = np.array([0.5])
-            dev = float(_slab_relative(ir, c60)[0] / (fresnel_slab_transmittance(c60, d.ior)[0] /
-                                                   fresnel_slab_transmittance(np.ones(1), d.ior)[0])) - 1
+            dev = float(slab_relative(ir, c60)[0] / (fresnel_slab_transmittance(c60, d.ior)[0] /
+                                                  fresnel_slab_transmittance(np.ones(1), d.ior)[0])) - 1
             notes.append(f"diffuser roughness {r:g} (GGX α = {r * r:.4g}): a thin sheet with the clear "
                          f"plate's Fresnel angular transmittance; the rough slab's T(θ) ({100 * dev:+.1f} % "
                          f"at 60°) and its lobe (90 % within "
-                         f"{float(_rough_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
+                         f"{float(plate_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
                          f"in the bake")
         sheets.append(TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
                                         transmittance=tuple(float(x) for x in T), ior=d.ior,

@@ -747,7 +747,7 @@ class BakeJob(StrictModel):
 
 def save_job(job: BakeJob, path: Path) -> Path:
     """Write a job file (indented canonical JSON, written atomically)."""
-    from lbscene.engine.scene.build import write_atomic
+    from lbscene.engine.files.atomic import write_atomic
 
     text = json.dumps(json.loads(job.to_json()), indent=1, sort_keys=True, ensure_ascii=False) + "\n"
     write_atomic(Path(path), text)

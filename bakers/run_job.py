@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
     args = ap.parse_args(argv)
 
-    from lbscene.engine.scene.build import atomic_replace_dir
+    from lbscene.engine.files.atomic import atomic_replace_dir
     from lbscene.engine.files.diagnostics import LbsceneUserError
 
     from .job import load_job

@@ -187,6 +187,7 @@ def main() -> int:
     from lbscene.engine.colour.accuracy import (booth_lighting_spds, cie_lighting_spds,
                                                 colorchecker_reflectances)
     from lbscene.engine.colour.display_model import load_display
+    from lbscene.engine.scene.compile import compile_booth
 
     _, refl = colorchecker_reflectances()
     lights = cie_lighting_spds()
@@ -194,7 +195,7 @@ def main() -> int:
     if not args.quick:
         for b in sorted((REPO / "booths").glob("*/booth.yaml")):
             try:
-                lightings.update(booth_lighting_spds(b))
+                lightings.update(booth_lighting_spds(compile_booth(b)))
             except Exception as exc:  # a booth in progress must not stop the benchmark
                 print(f"note: {b.parent.name} skipped: {exc}")
     displays = [load_display(p) for p in sorted((REPO / "displays").glob("*.yaml"))]

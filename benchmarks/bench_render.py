@@ -77,7 +77,7 @@ def _sample():
     """ColorChecker 'moderate red' (Ohta), glossy (LTC highlights on), as a flat sample."""
     import colour
     import numpy as np
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     sd = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]["moderate red"]
     refl = np.interp(np.arange(360.0, 831.0), sd.wavelengths, sd.values)

@@ -10,10 +10,10 @@ The stable Python API (:mod:`lbscene.api`) is exported here: ``load_booth``,
 ``render_from_config``, and the error type ``LbsceneUserError``.
 """
 
+from lbscene._version import __version__
 from lbscene.api import __all__ as _API   # names only: the API module imports nothing heavy
 
 __all__ = ["__version__", *_API]
-__version__ = "0.1.0"
 
 
 def __getattr__(name: str):

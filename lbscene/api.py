@@ -58,7 +58,7 @@ def load_booth(path: Path | str, *, allowed_dirs: Iterable[Path] = ()):
     from .schemas.booth import Booth
 
     doc = load_document(find_booth_file(Path(path)), Booth, allowed_dirs=allowed_dirs)
-    errors = [d for d in lint_booth(doc, illuminance=False) if d.severity is Severity.ERROR]
+    errors = [d for d in lint_booth(doc) if d.severity is Severity.ERROR]
     if errors:
         raise LbsceneUserError(errors)
     return doc.model

@@ -32,7 +32,7 @@ app = typer.Typer(
 
 def _version(value: bool) -> None:
     if value:
-        from lbscene import __version__
+        from lbscene._version import __version__
 
         typer.echo(f"lbscene {__version__}")
         raise typer.Exit(0)

@@ -239,7 +239,7 @@ def _profile_samples(ir, lamp) -> list[float]:
     from lbscene.engine.light.effects.registry import get_effect
     from lbscene.engine.spectra.profiles import GaussianShape, profile_shape
 
-    # as the effect reads its parameters (engine/light/effects/catalog.py): its lamp selection, the
+    # as the effect reads its parameters (engine/light/effects/builtin/angular_profile.py): its lamp selection, the
     # declared profile, else its σ for lamps that declare none
     p = effect_params(get_effect("angular_profile"), ir.effects["angular_profile"])
     if p.lamps is not None and lamp.id not in p.lamps:
@@ -282,11 +282,11 @@ def _emitters(ir, lighting: str) -> list[dict]:
                   if diffuser.scattering.get("type") == "lambertian" else 0.0)
         trans = trans * (1.0 - float(fd))
         if diffuser.scattering.get("type") == "roughness":
-            from lbscene.engine.light.effects.catalog import _slab_relative
+            from lbscene.engine.light.plates import slab_relative
 
             # a rough slab's straight transmittance at normal incidence (the lobe and T(θ) are not
             # represented: diffuser_notes says so)
-            trans = trans * float(_slab_relative(ir, np.ones(1))[0])
+            trans = trans * float(slab_relative(ir, np.ones(1))[0])
     for lamp, level in ir.lamps_on(lighting):
         emission = grid.integrate(ir.lamp_emission_1nm(lamp)) * level
         below = diffuser is not None and lamp.position_mm[2] > diffuser.z_mm
@@ -322,10 +322,10 @@ def diffuser_notes(ir) -> list[str]:
     d = ir.diffuser
     if d is None or "diffuser" not in ir.effects or d.scattering.get("type") != "roughness":
         return []
-    from lbscene.engine.light.effects.catalog import _rough_slab
+    from lbscene.engine.light.plates import plate_slab
 
     r = float(d.scattering["roughness"])
-    slab = _rough_slab(ir)
+    slab = plate_slab(ir)
     return [f"diffuser roughness {r:g} (GGX α = {r * r:.4g}): the LTC highlights of lamps behind the "
             f"plate are sharp and dimmed by its normal-incidence transmittance only; the rough slab's "
             f"lobe (90 % of its light within {float(slab.lobe_deg(1.0, 0.9)):.2g}° at normal incidence) "

@@ -362,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {done}/{total} roughness rows, {elapsed:.0f} s", file=sys.stderr, flush=True)
 
     table = fit_table(a.size, a.samples, progress)
-    from lbscene.engine.scene.build import write_atomic
+    from lbscene.engine.files.atomic import write_atomic
 
     write_atomic(a.out, json.dumps(table, indent=1, sort_keys=True) + "\n")
     print(f"wrote {a.out}")

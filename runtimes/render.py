@@ -21,8 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from lbscene.engine.scene.sample import SampleSpec
+
 from .executor import GraphExecutor, PassTiming, create_context
-from .scene import CameraSpec, SampleSpec, SceneBuilder
+from .scene import CameraSpec, SceneBuilder
 
 __all__ = [
     "RenderResult",

@@ -28,11 +28,12 @@ from typing import Any
 
 import numpy as np
 
+from lbscene.engine.scene.sample import SampleSpec
+
 from .graph import EMITTER_TEXELS, PROFILE_SAMPLES, rotation_matrix
 
 __all__ = [
     "VERTEX_FLOATS",
-    "SampleSpec",
     "CameraSpec",
     "ViewInputs",
     "SceneBuilder",
@@ -51,52 +52,6 @@ SAMPLE_GRID = 16
 
 
 # --------------------------------------------------------------------------- inputs
-
-@dataclass
-class SampleSpec:
-    """The sample as the runtime needs it.
-
-    ``geometries``: ``(aspecular_deg, label, reflectance_1nm)``; one entry (any
-    angle) for a geometry-independent reflectance.
-    """
-
-    name: str
-    geometries: list[tuple[float, str, np.ndarray]]
-    size_mm: tuple[float, float] = (100.0, 85.0)
-    gloss_GU: float = 0.0
-    roughness: float = 0.1
-
-    @classmethod
-    def flat(cls, reflectance_1nm, name: str = "flat", size_mm=(100.0, 85.0), gloss_GU: float = 0.0,
-             roughness: float = 0.1) -> "SampleSpec":
-        return cls(name, [(0.0, "all", np.asarray(reflectance_1nm, float))], tuple(size_mm),
-                   gloss_GU, roughness)
-
-    @classmethod
-    def from_document(cls, doc) -> "SampleSpec":
-        """From a loaded :class:`lbscene.schemas.sample.Sample` document."""
-        from lbscene.engine.spectra.evaluate import evaluate_spectrum
-        from lbscene.schemas.booth import parse_geometry_name
-
-        m = doc.model
-        geoms = []
-        for g in m.by_geometry:
-            _, asp = parse_geometry_name(g.geometry)
-            geoms.append((asp, g.geometry, evaluate_spectrum(g.reflectance, doc.resolve, "reflectance",
-                                                             display=f"{m.name} {g.geometry}")))
-        if not geoms:
-            geoms.append((0.0, "all", evaluate_spectrum(m.reflectance, doc.resolve, "reflectance",
-                                                         display=m.name)))
-        geoms.sort(key=lambda g: g[0])
-        return cls(m.name, geoms, tuple(m.size_mm), m.gloss_GU, m.roughness)
-
-    def digest(self) -> str:
-        h = hashlib.sha256(repr((self.name, self.size_mm, self.gloss_GU, self.roughness)).encode())
-        for a, label, r in self.geometries:
-            h.update(f"{a}:{label}".encode())
-            h.update(np.asarray(r, float).tobytes())
-        return h.hexdigest()[:16]
-
 
 @dataclass
 class CameraSpec:

@@ -39,8 +39,8 @@ import numpy as np
 
 from lbscene.engine.files.outputs import output_path
 from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, to_reference
-from .band_weighting import (band_xyz_weights, cmfs_1nm, illuminant_bands, project_reflectance,
-                             reference_xyz)
+
+from .band_weighting import band_xyz_weights, cmfs_1nm, illuminant_bands, project_reflectance, reference_xyz
 
 __all__ = [
     "COLORCHECKER_SET",
@@ -117,16 +117,15 @@ def cie_lighting_spds() -> dict[str, np.ndarray]:
     return {k: v.copy() for k, v in _cie_spds().items()}
 
 
-def booth_lighting_spds(booth_path) -> dict[str, np.ndarray]:
+def booth_lighting_spds(ir) -> dict[str, np.ndarray]:
     """``"<booth name>: <configuration>"`` → 1 nm irradiance at the sample position.
 
-    Uses :func:`lbscene.engine.scene.compile.compile_booth` and
-    :meth:`SceneIR.lighting_spd_1nm` (lamps, their filters when modelled, at the
-    sample).  Configurations that put no light on the sample are left out.
+    ``ir`` is a compiled booth (a :class:`~lbscene.engine.scene.ir.SceneIR`, from
+    :func:`lbscene.engine.scene.compile.compile_booth`); its
+    :meth:`~lbscene.engine.scene.ir.SceneIR.lighting_spd_1nm` gives each lighting's light at
+    the sample (lamps, their filters when modelled).  Configurations that put no light on
+    the sample are left out.
     """
-    from lbscene.engine.scene.compile import compile_booth
-
-    ir = compile_booth(booth_path)
     out = {}
     for name in ir.lighting:
         spd = np.asarray(ir.lighting_spd_1nm(name), float)

@@ -453,9 +453,8 @@ class DisplayModel:
 
 def load_display(path, *, mapping: Literal["chroma", "clip"] = "chroma") -> DisplayModel:
     """Load a display YAML file (located diagnostics on errors) and build its model."""
-    from lbscene.schemas.display import Display
-
     from lbscene.engine.files.load import load_document
+    from lbscene.schemas.display import Display
 
     doc = load_document(Path(path), Display)
     return DisplayModel(doc.model, doc.resolve, mapping=mapping, display_name=doc.file)

@@ -27,11 +27,21 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT"]
+__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "array_key"]
 
 #: bump when a cached computation changes its result for the same inputs
 FORMAT = "lbscene-geometry-1"
 DEFAULT_MAX_MB = 2048
+
+
+def array_key(*arrays) -> str:
+    """Short content hash of arrays (cache keys)."""
+    h = hashlib.blake2b(digest_size=12)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def cache_dir() -> Path | None:

@@ -28,9 +28,10 @@ def data_dir(name: str) -> Path | None:
     Looks next to the ``lbscene`` package first (installed wheel: ``lbscene/<name>``), then one
     level up (source checkout: ``<repo>/<name>``).
     """
-    import lbscene
+    from importlib.util import find_spec
 
-    pkg = Path(lbscene.__file__).resolve().parent
+    # located, not imported: the package's __init__ loads the API, a layer far above this one
+    pkg = Path(find_spec("lbscene").origin).resolve().parent
     for cand in (pkg / name, pkg.parent / name):
         if cand.is_dir():
             return cand

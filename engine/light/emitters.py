@@ -46,8 +46,6 @@ Examples
 ...                 aim=np.array([0, 0, -1.0]), length_mm=1000.0, radius_mm=10.0)
 >>> round(e.projected_area_m2, 6)          # 2·r·ℓ
 0.02
->>> round(base_solid_angle_sr("tube"), 6)  # π²
-9.869604
 """
 
 from __future__ import annotations
@@ -58,6 +56,8 @@ from typing import Callable
 
 import numpy as np
 
+from lbscene.engine.spectra.profiles import base_law, modulation, sphere_directions
+
 __all__ = [
     "Emitter",
     "TubeEmitter",
@@ -67,11 +67,6 @@ __all__ = [
     "EMITTER_TYPES",
     "emitter_from_lamp",
     "projected_area_m2",
-    "base_solid_angle_sr",
-    "solid_angle_weight_sr",
-    "ies_frame",
-    "ies_angles",
-    "base_law",
     "unit_irradiance",
 ]
 
@@ -85,91 +80,6 @@ def _gauss(n: int):
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, float)
     return v / np.linalg.norm(v)
-
-
-def ies_frame(axis, aim) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Orthonormal frame ``(e_C0, e_C90, aim)`` of a lamp's photometry.
-
-    ``e_C0`` is ``axis`` made perpendicular to ``aim`` (any perpendicular when
-    they are parallel), ``e_C90 = e_C0 × aim``.
-    """
-    aim = _unit(aim)
-    a = np.asarray(axis, float)
-    e0 = a - (a @ aim) * aim
-    if np.linalg.norm(e0) < 1e-9:
-        e0 = np.cross(aim, [1.0, 0.0, 0.0] if abs(aim[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e0 = _unit(e0)
-    return e0, np.cross(e0, aim), aim
-
-
-def ies_angles(u, axis, aim) -> tuple[np.ndarray, np.ndarray]:
-    """(γ, C) in radians of unit directions ``u`` (..., 3) in a lamp's photometric frame."""
-    e0, e90, a = ies_frame(axis, aim)
-    u = np.asarray(u, float)
-    gamma = np.arccos(np.clip(u @ a, -1.0, 1.0))
-    c = np.arctan2(u @ e90, u @ e0) % (2 * np.pi)
-    return gamma, c
-
-
-def base_law(kind: str, u, axis, aim) -> np.ndarray:
-    """Relative intensity ``b(u)`` of an unmodulated emitter (1 at its reference direction).
-
-    tube: ``sin`` of the angle to ``axis``; panel: ``max(0, cos)`` of the angle to ``aim``;
-    bulb and point: 1.
-    """
-    u = np.asarray(u, float)
-    if kind == "tube":
-        c = u @ _unit(axis)
-        return np.sqrt(np.clip(1.0 - c * c, 0.0, None))
-    if kind == "panel":
-        return np.clip(u @ _unit(aim), 0.0, None)
-    return np.ones(u.shape[:-1])
-
-
-def base_solid_angle_sr(kind: str, end_caps_ratio: float = 0.0) -> float:
-    """``Φ / I_ref`` of an unmodulated emitter, sr: tube π² (+ caps), panel π, bulb/point 4π.
-
-    ``end_caps_ratio`` = cap area / lateral area, ``r / ℓ`` (cap flux π·L·2πr² over π²·L·2rℓ).
-    """
-    if kind == "tube":
-        return float(np.pi ** 2 * (1.0 + end_caps_ratio))
-    if kind == "panel":
-        return float(np.pi)
-    return float(4.0 * np.pi)
-
-
-def _sphere_directions(n: int) -> np.ndarray:
-    """Fibonacci lattice: ``n`` nearly uniform unit vectors (equal solid angle 4π/n)."""
-    i = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * i / n
-    phi = np.pi * (1.0 + 5 ** 0.5) * i
-    s = np.sqrt(1.0 - z * z)
-    return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
-
-
-def solid_angle_weight_sr(kind: str, axis, aim, shape=None, *, radius_mm: float = 0.0,
-                          length_mm: float = 0.0, end_caps: bool = False, n: int = 200_000) -> float:
-    """``Φ / I_ref`` (sr): ∫ b(u)·f(u) dΩ over the sphere (caps included), closed form when f ≡ 1."""
-    ratio = radius_mm / length_mm if (kind == "tube" and end_caps and length_mm > 0) else 0.0
-    if shape is None or getattr(shape, "isotropic", False):
-        return base_solid_angle_sr(kind, ratio)
-    u = _sphere_directions(n)
-    f = modulation(shape, u, axis, aim)
-    b = base_law(kind, u, axis, aim)
-    if ratio:
-        # caps: two discs of area πr², normal ±axis: I = L·πr²·|cos| = I_ref·(π r/2ℓ)·|cos|
-        b = b + (np.pi * ratio / 2.0) * np.abs(u @ _unit(axis))
-    return float(4.0 * np.pi * np.mean(b * f))
-
-
-def modulation(shape, u, axis, aim) -> np.ndarray:
-    """Value of a profile ``shape`` toward unit directions ``u``: f(γ[, C])."""
-    if shape is None:
-        return np.ones(np.shape(u)[:-1])
-    gamma, c = ies_angles(u, axis, aim)
-    if getattr(shape, "two_d", False):
-        return np.asarray(shape(gamma, c), float)
-    return np.asarray(shape(gamma), float)
 
 
 def projected_area_m2(kind: str, length_mm: float, width_mm: float, radius_mm: float) -> float | None:
@@ -243,7 +153,7 @@ class SphereEmitter(Emitter):
     def surface_points(self, n_along: int, n_around: int = 1, rng=None):
         n = max(1, n_along * n_around)
         if rng is None:
-            d = _sphere_directions(n)
+            d = sphere_directions(n)
         else:
             z = 1.0 - 2.0 * (np.arange(n) + rng.random(n)) / n
             phi = 2 * np.pi * rng.random(n)

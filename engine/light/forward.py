@@ -42,14 +42,14 @@ array([2040.81...])
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, replace
 from typing import Iterable, Sequence
 
 import numpy as np
 
-from lbscene.engine.light.effects.physics import (DirectionalSource, EmitterSet, ForwardContext, LambertianSource, PointLight,
-                              effect_params)
+from lbscene.engine.files.disk_cache import array_key
+from lbscene.engine.light.effects.physics import (DirectionalSource, EmitterSet, ForwardContext,
+                                                  LambertianSource, PointLight, effect_params)
 
 __all__ = [
     "ForwardOptions",
@@ -141,16 +141,6 @@ def blas_single_thread():
     return _BLAS.limit(limits=1)
 
 
-def array_key(*arrays) -> str:
-    """Short content hash of arrays (cache keys)."""
-    h = hashlib.blake2b(digest_size=12)
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(str(a.shape).encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
-
-
 _TABLES: dict = {}
 
 
@@ -159,8 +149,8 @@ def spectral_tables(grid):
     key = (grid.first_centre_nm, grid.width_nm, grid.count)
     t = _TABLES.get(key)
     if t is None:
-        from lbscene.engine.spectra.evaluate import photopic_1nm
         from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
+        from lbscene.engine.spectra.evaluate import photopic_1nm
 
         c = grid.centres_nm
         P = np.zeros((WL.size, c.size))
@@ -396,7 +386,7 @@ class ForwardModel:
                 g0 = g0 * np.sqrt(np.clip(1.0 - c * c, 0.0, None))
             if es.shape is not None:
                 if getattr(es.shape, "two_d", False):
-                    from .emitters import ies_angles
+                    from lbscene.engine.spectra.profiles import ies_angles
 
                     axis = es.lamp_axis if es.lamp_axis is not None else np.array([1.0, 0.0, 0.0])
                     theta = ies_angles(ue, axis, es.aim)

@@ -65,11 +65,11 @@ from dataclasses import replace
 import numpy as np
 
 from lbscene.engine.files.disk_cache import cached_array
-from .geometry import (Patches, _breaks, _grid_quad, bodies_block, plate_pieces,
-                               coplanar_convex_faces, hidden_from_apex, mesh_patches, mesh_triangles,
-                               polygon_form_factor, pyramids_clear_of, quad_areas, quad_centroids,
-                               quad_r2_points, quad_subpoints, segments_blocked, pairs_near_bodies,
-                               segments_blocked_by_polygon, visibility_matrix)
+
+from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_convex_faces, hidden_from_apex,
+                       mesh_patches, mesh_triangles, pairs_near_bodies, plate_pieces, polygon_form_factor,
+                       pyramids_clear_of, quad_areas, quad_centroids, quad_r2_points, quad_subpoints,
+                       segments_blocked, segments_blocked_by_polygon, visibility_matrix)
 
 __all__ = ["RadiosityTransport", "radiosity_transport", "patch_form_factors", "interior_patches",
            "occluder_patches", "transport_bodies", "transport_occluders",
@@ -471,11 +471,11 @@ def transport_occluders(ctx) -> list[tuple[object, object]]:
     transport's patches and visibility at every step."""
     if "aperture_occlusion" not in ctx.effects:
         return []
-    from lbscene.engine.light.effects.catalog import _occluder_rects
+    from .plates import occluder_rects
 
     occ = ctx.params("aperture_occlusion").model_copy(update={"opening_scale": 1.0, "opening_scale_u": 1.0,
                                                                  "opening_scale_v": 1.0})
-    return list(_occluder_rects(ctx.ir, occ))
+    return list(occluder_rects(ctx.ir, occ))
 
 
 def _body_signature(bodies) -> tuple:
@@ -566,12 +566,12 @@ class RadiosityTransport:
         self.plate_T = None
         self.cross_pp = None
         if "diffuser" in ctx.effects and ir.diffuser is not None:
-            from lbscene.engine.light.effects.catalog import DiffuserEffect, _diffuser_rect, plate_diffuse_light_factor
             from .geometry import segment_hits_rectangle
+            from .plates import diffuser_rect, diffuser_transmittance_1nm, plate_diffuse_light_factor
 
             dp = ctx.params("diffuser")
-            self.plate_rect = _diffuser_rect(ir)
-            self.plate_T = ir.grid.integrate(DiffuserEffect._spectrum(ctx, dp)) * \
+            self.plate_rect = diffuser_rect(ir)
+            self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp)) * \
                 plate_diffuse_light_factor(ir)                                          # (B,)
             ck = key + ("plate_cross",)
             if ck not in ctx.cache:
@@ -877,7 +877,7 @@ class RadiosityTransport:
     def _band_classes(self):
         """Bands whose reflectances (and plate transmittance) coincide share one solve:
         ``(unique rows (U, P[+1]), band → row index (B,), cache key)``."""
-        from .forward import array_key
+        from lbscene.engine.files.disk_cache import array_key
 
         ck = self._rho_key + ("classes", None if self.plate_T is None else array_key(self.plate_T))
         hit = self.ctx.cache.get(ck)
@@ -962,7 +962,7 @@ class RadiosityTransport:
         """
         from scipy.linalg import lu_solve
 
-        from .forward import array_key
+        from lbscene.engine.files.disk_cache import array_key
 
         uniq, inv, key = self._band_classes()
         ck = key + (array_key(G, P_rx),)

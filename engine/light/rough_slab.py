@@ -68,7 +68,7 @@ Tabulated (per incidence node :math:`μ_i`, :data:`THETA_I_DEG`):
   lobes wider than a bin (see :attr:`RoughSlab.lobe_90_deg`).
 
 Limits (tested): :math:`α → 0` gives the clear slab
-(:func:`~lbscene.engine.light.effects.physics.fresnel_slab_transmittance`), energy is conserved,
+(:func:`fresnel_slab_transmittance`), energy is conserved,
 the BTDF is reciprocal, :math:`f_T(ω_i, ω_o) = f_T(ω_o, ω_i)`.
 
 The hemispherical transmittance of diffuse (Lambertian) light is
@@ -90,6 +90,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
+           "fresnel_slab_transmittance",
            "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS",
            "SHIPPED_PLATES", "SHIPPED_TABLES_DIR", "shipped_table_path", "write_shipped_table"]
 
@@ -117,6 +118,21 @@ SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
                   (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
+
+
+def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
+    """Unpolarised transmittance of a non-absorbing plate (two interfaces, multiple reflections)."""
+    cos_i = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
+    sin_t = np.sqrt(np.clip(1.0 - cos_i ** 2, 0.0, None)) / ior
+    cos_t = np.sqrt(np.clip(1.0 - sin_t ** 2, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = ((cos_i - ior * cos_t) / (cos_i + ior * cos_t)) ** 2
+        rp = ((ior * cos_i - cos_t) / (ior * cos_i + cos_t)) ** 2
+    rs = np.where(cos_i > 0, rs, 1.0)
+    rp = np.where(cos_i > 0, rp, 1.0)
+    ts = (1 - rs) / (1 + rs)      # slab with incoherent multiple reflections
+    tp = (1 - rp) / (1 + rp)
+    return 0.5 * (ts + tp)
 
 
 def clear_slab_normal_transmittance(ior: float) -> float:

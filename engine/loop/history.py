@@ -15,7 +15,6 @@ import os
 import time
 from pathlib import Path
 
-
 __all__ = ["append_history", "check_history_path", "read_history", "change_label", "plot_history"]
 
 MAX_ENTRIES = 10_000

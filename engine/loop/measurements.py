@@ -127,9 +127,8 @@ def _shown(doc, spec, fallback: str) -> str:
 def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
                          default_orientation: str = "up", interior=None) -> tuple[IlluminanceData, list[Diagnostic]]:
     """Read one illuminance CSV; return the data and *all* problems found (errors)."""
-    from lbscene.schemas.measurement import ORIENTATIONS
-
     from lbscene.engine.files.yamlio import read_text_bounded
+    from lbscene.schemas.measurement import ORIENTATIONS
 
     text = read_text_bounded(path, display, 16 * 1024 * 1024)
     diags: list[Diagnostic] = []
@@ -276,9 +275,8 @@ def _tile_column(spec, resolve):
     """For a CSV radiance spec without `column:`, prefer a column named 'radiance'."""
     if spec.type != "csv" or spec.column is not None:
         return spec
-    from lbscene.engine.files.yamlio import read_text_bounded
-
     from lbscene.engine.files.load import display_path
+    from lbscene.engine.files.yamlio import read_text_bounded
 
     text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), 16 * 1024 * 1024)
     rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
@@ -292,12 +290,11 @@ def _tile_column(spec, resolve):
 def load_measurements(path: Path | str, booth: Path | str | None = None,
                       allowed_dirs: Iterable[Path] = ()) -> Measurements:
     """Load, validate and read a measurement set and its booth (raises LbsceneUserError)."""
-    from lbscene.schemas.measurement import MeasurementSet
-
+    from lbscene.engine.files.load import display_path, load_document
     from lbscene.engine.scene.compile import compile_booth, find_booth_file
     from lbscene.engine.scene.ir import IRSpectrum
-    from lbscene.engine.files.load import display_path, load_document
     from lbscene.engine.spectra.evaluate import evaluate_spectrum
+    from lbscene.schemas.measurement import MeasurementSet
 
     path = Path(path)
     if path.is_dir():

@@ -210,7 +210,7 @@ def render_report(res) -> str:
               _f(r["measured_lx"]), _f(r["predicted_lx"]), _f(r["residual_percent"])] for r in j["residuals"]]))
     import datetime
 
-    from lbscene import __version__
+    from lbscene._version import __version__
 
     stamp = datetime.datetime.now(datetime.timezone.utc).astimezone().isoformat(timespec="seconds")
     parts.append(f"<p class=meta>lbscene {e(__version__)} · {e(stamp)} · measurements "

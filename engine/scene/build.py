@@ -31,13 +31,13 @@ from importlib import import_module
 from pathlib import Path
 from typing import Callable
 
-from lbscene.engine.files.atomic import atomic_replace_dir, write_atomic
 from lbscene.engine.files.diagnostics import LbsceneUserError
-from .ir import SceneIR, canonical_json
-from lbscene.engine.files.outputs import (_is_input, check_output_dir, fault_point, register_input, replace_dir,
-                      restore_interrupted, temporary_dir_for)
+from lbscene.engine.files.outputs import (_is_input, check_output_dir, fault_point, register_input,
+                                          replace_dir, restore_interrupted, temporary_dir_for)
 
-__all__ = ["BuildResult", "build_booth", "PRODUCT_WRITERS", "atomic_replace_dir", "write_atomic"]
+from .ir import SceneIR, canonical_json
+
+__all__ = ["BuildResult", "build_booth", "PRODUCT_WRITERS"]
 
 #: Writers of per-lighting products: (module, function).  The function is called as
 #: ``fn(ir, lighting_name, folder) -> list[Path]``; a module that is not installed is skipped.
@@ -122,7 +122,7 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
             fault_point("build-lighting")
         files = sorted(p for p in tmp.rglob("*") if p.is_file())
         result.files = {p.relative_to(tmp).as_posix(): _sha256(p) for p in files}
-        from lbscene import __version__
+        from lbscene._version import __version__
 
         manifest = {"lbscene_version": __version__, "booth": ir.booth_name,
                     "booth_source": ir.booth_source, "ir_hash": ir.content_hash,

@@ -1,8 +1,9 @@
 """
 Compile a booth document into the :class:`~lbscene.engine.scene.ir.SceneIR`.
 
-parse (yamlio) → validate (schemas, effect params via the registry) →
-semantic rules (:mod:`lbscene.engine.scene.lint`) → instantiate (this module): read
+parse (yamlio) → validate (schemas; effect parameters via the registry,
+:mod:`lbscene.engine.scene.effect_params`) → semantic rules
+(:mod:`lbscene.engine.scene.lint`) → instantiate (this module): read
 every referenced file, evaluate spectra to numbers, triangulate geometry, turn
 lamp output specs into absolute spectral intensity.
 """
@@ -13,19 +14,18 @@ from pathlib import Path
 from typing import Iterable
 
 import numpy as np
-from pydantic import ValidationError
 
+from lbscene.engine.files.diagnostics import DiagnosticBag, LbsceneUserError
+from lbscene.engine.files.load import LoadedDocument, display_path, load_document
+from lbscene.engine.spectra.bands import DEFAULT_GRID, BandGrid
 from lbscene.schemas.booth import Booth, parse_geometry_name
 
-from lbscene.engine.files.diagnostics import Diagnostic, DiagnosticBag, LbsceneUserError
-from .ir import (IR_VERSION, IRDiffuser, IRFilter, IRGeometry, IRInterior, IRLamp, IRLighting,
-                 IRMaterial, IRObserver, IROccluder, IRPlatform, IRReflector, IRSpectrum,
-                 IRSurface, SceneIR)
-from lbscene.engine.files.load import LoadedDocument, display_path, load_document, pydantic_to_diagnostics
-from lbscene.engine.spectra.bands import DEFAULT_GRID, BandGrid
+from .effect_params import validate_effects
+from .ir import (IR_VERSION, IRDiffuser, IRFilter, IRGeometry, IRInterior, IRLamp, IRLighting, IRMaterial,
+                 IRObserver, IROccluder, IRPlatform, IRReflector, IRSpectrum, IRSurface, SceneIR)
+from .lint import lint_booth
 
-__all__ = ["BOOTH_FILENAME", "find_booth_file", "load_booth", "validate_effects",
-           "compile_booth", "compile_loaded"]
+__all__ = ["BOOTH_FILENAME", "find_booth_file", "load_booth", "compile_booth", "compile_loaded"]
 
 BOOTH_FILENAME = "booth.yaml"
 
@@ -52,29 +52,6 @@ def find_booth_file(path: Path | str) -> Path:
     return p
 
 
-def validate_effects(doc: LoadedDocument) -> tuple[dict[str, dict], list[Diagnostic]]:
-    """Validate ``effects:`` against the registry: unknown ids and bad params, located."""
-    from lbscene.engine.light.effects.registry import available_effects
-
-    registry = available_effects()
-    out: dict[str, dict] = {}
-    diags: list[Diagnostic] = []
-    for eid, params in doc.model.effects.items():
-        if eid not in registry:
-            diags.append(Diagnostic(
-                "LB106", f"unknown effect id '{eid}'", doc.locate("effects", eid, key=True),
-                value=repr(eid), expected=f"one of {', '.join(registry)} (or a plugin's id)"))
-            continue
-        model = registry[eid].Params
-        try:
-            out[eid] = model.model_validate(params if params is not None else {}).model_dump(mode="json")
-        except ValidationError as exc:
-            data = params if params is not None else {}
-            diags.extend(pydantic_to_diagnostics(exc, data, doc.yaml.positions,
-                                                 prefix=("effects", eid)))
-    return out, diags
-
-
 def load_booth(path: Path | str, allowed_dirs: Iterable[Path] = ()) -> LoadedDocument:
     """Load and validate a booth (schema + effect parameters); raise on errors."""
     f = find_booth_file(path)
@@ -89,10 +66,8 @@ def compile_booth(path: Path | str, grid: BandGrid = DEFAULT_GRID,
                   allowed_dirs: Iterable[Path] = ()) -> SceneIR:
     """Booth folder or file → SceneIR (raises :class:`LbsceneUserError` on any error)."""
     doc = load_booth(path, allowed_dirs)
-    from .lint import lint_booth
-
     bag = DiagnosticBag()
-    bag.extend(lint_booth(doc, illuminance=False))
+    bag.extend(lint_booth(doc))
     bag.raise_if_errors()
     return compile_loaded(doc, grid)
 
@@ -232,9 +207,9 @@ def _file_surfaces(doc: LoadedDocument) -> list[IRSurface]:
 # --------------------------------------------------------------------------- lamps
 
 def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
-    from lbscene.engine.light.emitters import emitter_from_lamp, projected_area_m2, solid_angle_weight_sr, unit_irradiance
-    from lbscene.engine.spectra.profiles import profile_shape, read_ies
+    from lbscene.engine.light.emitters import emitter_from_lamp, projected_area_m2, unit_irradiance
     from lbscene.engine.spectra.evaluate import evaluate_spectrum, luminous_efficacy_sum
+    from lbscene.engine.spectra.profiles import profile_shape, read_ies, solid_angle_weight_sr
 
     spd = evaluate_spectrum(lamp.spd, doc.resolve, "emission", display=f"lamp {lamp.id} spd")
     ref = np.interp(560.0, np.arange(360.0, 831.0), spd)
@@ -250,7 +225,7 @@ def _lamp_ir(lamp, doc: LoadedDocument, grid: BandGrid) -> IRLamp:
     lum_per_unit = luminous_efficacy_sum(spd)  # cd per (W·sr⁻¹·nm⁻¹ scale)
     aim = np.asarray(_unit(lamp.aim))
     axis = np.asarray(_unit(lamp.axis))
-    # Φ / I_ref of the lamp's own Lambertian shape times its modulation (emitters module)
+    # Φ / I_ref of the lamp's own Lambertian shape times its modulation (spectra.profiles)
     omega = solid_angle_weight_sr(lamp.type, axis, aim, shape, radius_mm=lamp.radius_mm,
                                   length_mm=lamp.length_mm, end_caps=lamp.end_caps)
     area_m2 = projected_area_m2(lamp.type, lamp.length_mm, lamp.width_mm, lamp.radius_mm)

@@ -301,13 +301,13 @@ class SceneIR(_IR):
 
     def lamp_emission_1nm(self, lamp: IRLamp, *, with_filter: bool | None = None) -> np.ndarray:
         """Peak spectral intensity of a lamp, W·sr⁻¹·nm⁻¹, after the booth's lamp-spectrum
-        effects (:func:`lbscene.engine.light.effects.catalog.lamp_spectrum_1nm`: a spectrum shift, its
+        effects (:func:`lbscene.engine.light.lamp_spectrum.lamp_spectrum_1nm`: a spectrum shift, its
         filter when modelled).
 
         ``with_filter=None`` follows the model: the filter applies when the
         ``spectral_filter`` effect is enabled; True/False force it on/off.
         """
-        from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
+        from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
 
         eff = dict(self.effects)
         if with_filter is False:

@@ -32,9 +32,12 @@ from lbscene.schemas.booth import Booth
 from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError, Severity
 from lbscene.engine.light.geometry import rotation_matrix
 from lbscene.engine.files.load import LoadedDocument
+
+from .effect_params import validate_effects
 from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 
-__all__ = ["lint_booth", "spectrum_coverage", "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
+__all__ = ["lint_booth", "illuminance_rules", "needs_illuminance_rules", "spectrum_coverage",
+           "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
 
 #: Illuminance ranges at the viewing plane by viewing standard.
 ILLUMINANCE_RANGES_LX = {
@@ -142,13 +145,13 @@ def _lamp_clearance(doc: LoadedDocument) -> list[Diagnostic]:
     return out
 
 
-def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnostic]:
-    """All semantic diagnostics of a schema-valid booth document.
+def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
+    """The semantic diagnostics of a schema-valid booth document that need no compiled IR.
 
-    ``illuminance=False`` skips the viewing-standard warnings (they compile the
-    booth; the compiler itself runs the error rules only).
+    Every rule of the table above but LB310: the viewing-standard warnings need the
+    compiled booth (:func:`illuminance_rules`; ``validate-config`` runs them once these
+    rules find no error).
     """
-    from .compile import validate_effects
     from lbscene.engine.spectra.evaluate import evaluate_spectrum
 
     booth: Booth = doc.model
@@ -336,10 +339,6 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
     for i, lp in enumerate(booth.lamps):
         check_spectrum(lp.spd, "emission", ("lamps", i, "spd"), f"SPD of lamp '{lp.id}'")
 
-    # ---- illuminance vs viewing standards (warning), only when the document is otherwise sound
-    if illuminance and not any(d.severity is Severity.ERROR for d in diags):
-        diags.extend(_illuminance_rules(doc))
-
     # ---- provenance (info)
     if booth.provenance.status == "estimate":
         fields = ", ".join(booth.provenance.estimated_fields) or "all values"
@@ -349,18 +348,18 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
     return diags
 
 
-def _illuminance_rules(doc: LoadedDocument) -> list[Diagnostic]:
-    from .compile import compile_loaded
+def needs_illuminance_rules(doc: LoadedDocument) -> bool:
+    """Whether a lighting of the booth names a viewing standard with an illuminance range."""
+    return any(c.standard in ILLUMINANCE_RANGES_LX for c in doc.model.lighting.values())
+
+
+def illuminance_rules(doc: LoadedDocument, ir) -> list[Diagnostic]:
+    """LB310: the direct illuminance at the sample of each lighting that names a viewing
+    standard, against the standard's range (warnings), from the compiled booth ``ir``."""
     from lbscene.engine.spectra.evaluate import luminous_efficacy_sum
 
     booth: Booth = doc.model
     todo = {n: c for n, c in booth.lighting.items() if c.standard in ILLUMINANCE_RANGES_LX}
-    if not todo:
-        return []
-    try:
-        ir = compile_loaded(doc)
-    except LbsceneUserError as exc:
-        return exc.diagnostics
     out = []
     for name, cfg in todo.items():
         lx = float(luminous_efficacy_sum(ir.lighting_spd_1nm(name)))

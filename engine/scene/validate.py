@@ -23,9 +23,19 @@ SKIP_DIRS = {".git", ".venv", "build", "__pycache__", "node_modules", ".pytest_c
 
 
 def _lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
-    from .lint import lint_booth
+    """The linter's rules, then, when they find no error, the viewing-standard warnings on the
+    compiled booth (a booth that does not compile: the compiler's diagnostics)."""
+    from .compile import compile_loaded
+    from .lint import illuminance_rules, lint_booth, needs_illuminance_rules
 
-    return lint_booth(doc)
+    diags = lint_booth(doc)
+    if any(d.severity is Severity.ERROR for d in diags) or not needs_illuminance_rules(doc):
+        return diags
+    try:
+        ir = compile_loaded(doc)
+    except LbsceneUserError as exc:
+        return diags + exc.diagnostics
+    return diags + illuminance_rules(doc, ir)
 
 
 #: kind → semantic rules run after schema validation (other modules may add theirs).

@@ -23,8 +23,9 @@ from typing import Literal
 import numpy as np
 
 from lbscene.engine.files.diagnostics import LbsceneUserError
-from .bands import REFERENCE_WAVELENGTHS_NM, to_reference
 from lbscene.engine.files.yamlio import read_text_bounded
+
+from .bands import REFERENCE_WAVELENGTHS_NM, to_reference
 
 __all__ = [
     "SpectrumKind",

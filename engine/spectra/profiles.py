@@ -10,12 +10,21 @@ type C photometry: vertical angle from nadir, horizontal angle around it).
 * ``cosine_power``: f = cosⁿθ for θ < 90°, else 0
 * ``ies``: candela table of an IES LM-63 file, normalised by its peak
 
+A lamp's whole angular law is the law of its shape times its profile,
+``I(u) = I_ref · b(u) · f(u)`` (see :mod:`lbscene.engine.light.emitters` for the shapes):
+the photometric frame of a lamp (:func:`ies_frame`, :func:`ies_angles`: LM-63 type C,
+γ = 0 along ``aim``, C = 0 along ``axis``), the shape's base law ``b``
+(:func:`base_law`, :func:`base_solid_angle_sr`), the profile's value toward directions
+(:func:`modulation`) and ``Φ / I_ref`` of the product (:func:`solid_angle_weight_sr`).
+
 Examples
 --------
 >>> import numpy as np
 >>> p = GaussianShape(sigma_deg=30.0)
 >>> float(p(np.radians(60.0)))  # exp(-(60/60)^2)
 0.36787944117144233
+>>> round(base_solid_angle_sr("tube"), 6)  # π²
+9.869604
 """
 
 from __future__ import annotations
@@ -30,7 +39,9 @@ from lbscene.engine.files.diagnostics import LbsceneUserError
 from lbscene.engine.files.yamlio import read_text_bounded
 
 __all__ = ["IsotropicShape", "GaussianShape", "CosinePowerShape", "IesShape", "profile_shape",
-           "solid_angle_weight_sr", "read_ies", "IesData", "ies_text"]
+           "modulation_solid_angle_sr", "read_ies", "IesData", "ies_text", "ies_frame", "ies_angles",
+           "base_law", "base_solid_angle_sr", "sphere_directions", "solid_angle_weight_sr",
+           "modulation"]
 
 
 @dataclass(frozen=True)
@@ -193,12 +204,102 @@ def profile_shape(profile, resolve=None):
     raise ValueError(f"unknown profile type {t!r}")
 
 
-def solid_angle_weight_sr(shape, n: int = 2049) -> float:
+def modulation_solid_angle_sr(shape, n: int = 2049) -> float:
     """∫ f dΩ over the sphere (sr) of a modulation alone: flux of a point = I0 · this."""
     if getattr(shape, "two_d", False):
-        from lbscene.engine.light.emitters import solid_angle_weight_sr as full
-
-        return full("point", (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), shape)
+        return solid_angle_weight_sr("point", (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), shape)
     theta = np.linspace(0.0, np.pi, n)
     f = np.asarray(shape(theta), float)
     return float(2.0 * np.pi * np.trapz(f * np.sin(theta), theta))
+
+
+# --------------------------------------------------------------------------- a lamp's angular law
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def ies_frame(axis, aim) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orthonormal frame ``(e_C0, e_C90, aim)`` of a lamp's photometry.
+
+    ``e_C0`` is ``axis`` made perpendicular to ``aim`` (any perpendicular when
+    they are parallel), ``e_C90 = e_C0 × aim``.
+    """
+    aim = _unit(aim)
+    a = np.asarray(axis, float)
+    e0 = a - (a @ aim) * aim
+    if np.linalg.norm(e0) < 1e-9:
+        e0 = np.cross(aim, [1.0, 0.0, 0.0] if abs(aim[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e0 = _unit(e0)
+    return e0, np.cross(e0, aim), aim
+
+
+def ies_angles(u, axis, aim) -> tuple[np.ndarray, np.ndarray]:
+    """(γ, C) in radians of unit directions ``u`` (..., 3) in a lamp's photometric frame."""
+    e0, e90, a = ies_frame(axis, aim)
+    u = np.asarray(u, float)
+    gamma = np.arccos(np.clip(u @ a, -1.0, 1.0))
+    c = np.arctan2(u @ e90, u @ e0) % (2 * np.pi)
+    return gamma, c
+
+
+def base_law(kind: str, u, axis, aim) -> np.ndarray:
+    """Relative intensity ``b(u)`` of an unmodulated emitter (1 at its reference direction).
+
+    tube: ``sin`` of the angle to ``axis``; panel: ``max(0, cos)`` of the angle to ``aim``;
+    bulb and point: 1.
+    """
+    u = np.asarray(u, float)
+    if kind == "tube":
+        c = u @ _unit(axis)
+        return np.sqrt(np.clip(1.0 - c * c, 0.0, None))
+    if kind == "panel":
+        return np.clip(u @ _unit(aim), 0.0, None)
+    return np.ones(u.shape[:-1])
+
+
+def base_solid_angle_sr(kind: str, end_caps_ratio: float = 0.0) -> float:
+    """``Φ / I_ref`` of an unmodulated emitter, sr: tube π² (+ caps), panel π, bulb/point 4π.
+
+    ``end_caps_ratio`` = cap area / lateral area, ``r / ℓ`` (cap flux π·L·2πr² over π²·L·2rℓ).
+    """
+    if kind == "tube":
+        return float(np.pi ** 2 * (1.0 + end_caps_ratio))
+    if kind == "panel":
+        return float(np.pi)
+    return float(4.0 * np.pi)
+
+
+def sphere_directions(n: int) -> np.ndarray:
+    """Fibonacci lattice: ``n`` nearly uniform unit vectors (equal solid angle 4π/n)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5 ** 0.5) * i
+    s = np.sqrt(1.0 - z * z)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
+
+
+def solid_angle_weight_sr(kind: str, axis, aim, shape=None, *, radius_mm: float = 0.0,
+                          length_mm: float = 0.0, end_caps: bool = False, n: int = 200_000) -> float:
+    """``Φ / I_ref`` (sr): ∫ b(u)·f(u) dΩ over the sphere (caps included), closed form when f ≡ 1."""
+    ratio = radius_mm / length_mm if (kind == "tube" and end_caps and length_mm > 0) else 0.0
+    if shape is None or getattr(shape, "isotropic", False):
+        return base_solid_angle_sr(kind, ratio)
+    u = sphere_directions(n)
+    f = modulation(shape, u, axis, aim)
+    b = base_law(kind, u, axis, aim)
+    if ratio:
+        # caps: two discs of area πr², normal ±axis: I = L·πr²·|cos| = I_ref·(π r/2ℓ)·|cos|
+        b = b + (np.pi * ratio / 2.0) * np.abs(u @ _unit(axis))
+    return float(4.0 * np.pi * np.mean(b * f))
+
+
+def modulation(shape, u, axis, aim) -> np.ndarray:
+    """Value of a profile ``shape`` toward unit directions ``u``: f(γ[, C])."""
+    if shape is None:
+        return np.ones(np.shape(u)[:-1])
+    gamma, c = ies_angles(u, axis, aim)
+    if getattr(shape, "two_d", False):
+        return np.asarray(shape(gamma, c), float)
+    return np.asarray(shape(gamma), float)

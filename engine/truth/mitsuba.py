@@ -282,7 +282,7 @@ class MitsubaTruth:
                 shape.pop("emitter")
                 out[f"body_{lamp.id}"] = dict(shape, bsdf=black)
                 continue
-            from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
+            from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
 
             I = level * lamp_spectrum_1nm(ir, lamp, fx)  # W/sr/nm, shifted and filtered as declared
             shape = self._lamp_shape(lamp, I)

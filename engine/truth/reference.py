@@ -78,7 +78,7 @@ def _profile_factor(src: dict, u: np.ndarray):
         nn = src["image_of"].n
         u = u - 2 * (u @ nn)[..., None] * nn
     if getattr(src["prof"], "two_d", False):      # IES: γ from aim, C from the lamp's axis
-        from lbscene.engine.light.emitters import ies_angles
+        from lbscene.engine.spectra.profiles import ies_angles
 
         return src["prof"](*ies_angles(u, src["axis"], src["aim"]))
     return src["prof"](np.arccos(np.clip(u @ src["aim"], -1, 1)))
@@ -94,7 +94,8 @@ def _profile(profile: dict):
         return lambda th: np.where(th < np.pi / 2, np.cos(np.minimum(th, np.pi / 2)) ** e, 0.0)
     if t == "isotropic" or t is None:
         return None
-    from lbscene.engine.spectra.profiles import profile_shape  # IES tables: reuse the reader, nothing to compute
+    from lbscene.engine.spectra.profiles import \
+        profile_shape  # IES tables: reuse the reader, nothing to compute
 
     return profile_shape(profile)
 
@@ -356,7 +357,7 @@ class ReferenceEngine:
                 elif ap.sigma_deg is not None:
                     prof = _profile({"type": "gaussian", "sigma_deg": ap.sigma_deg})
             # shifted and filtered as the forward model's emitters are (one definition)
-            from lbscene.engine.light.effects.catalog import lamp_spectrum_1nm
+            from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
 
             spec = lamp_spectrum_1nm(self.ir, lamp, {k: v.model_dump() for k, v in self.fx.items()}) * level
             blockers = self._occluders(lamp.id)

@@ -27,7 +27,7 @@ __all__ = ["reflectance_at", "case_delta_e00"]
 
 
 def reflectance_at(sample, aspecular_deg: float) -> np.ndarray:
-    """R(λ) (1 nm) of a :class:`~lbscene.runtimes.scene.SampleSpec` at an aspecular angle:
+    """R(λ) (1 nm) of a :class:`~lbscene.engine.scene.sample.SampleSpec` at an aspecular angle:
     linear between its measured geometries (sorted by angle), constant beyond them."""
     geoms = sorted(sample.geometries, key=lambda g: g[0])
     angles = np.array([g[0] for g in geoms], float)

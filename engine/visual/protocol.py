@@ -50,7 +50,7 @@ RESULT_COLUMNS = ("session", "observer", "repeat", "order", "lighting", "geometr
 
 @dataclass
 class LoadedSession:
-    """A session file, its samples (:class:`~lbscene.runtimes.scene.SampleSpec`, in the
+    """A session file, its samples (:class:`~lbscene.engine.scene.sample.SampleSpec`, in the
     file's order) and its trials."""
 
     doc: object
@@ -110,7 +110,7 @@ def plan_trials(session_model, sample_names: list[str]) -> list[dict]:
 def load_session(path: Path, allowed_dirs=()) -> LoadedSession:
     """Read and check a session file (located diagnostics for every mistake)."""
     from lbscene.engine.files.load import load_document
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
     from lbscene.schemas.sample import Sample
     from lbscene.schemas.visual_session import VisualSession
 

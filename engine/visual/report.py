@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from lbscene.engine.files.diagnostics import LbsceneUserError
+
 from .stats import inter_observer_stress, intra_observer_stress, stress, visual_differences
 
 __all__ = ["analyse", "read_model_delta_e", "render_html"]

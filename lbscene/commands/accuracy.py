@@ -119,6 +119,7 @@ def register(app: typer.Typer) -> None:
             plot_per_patch,
         )
         from lbscene.engine.colour.display_model import load_display
+        from lbscene.engine.scene.compile import compile_booth
         from lbscene.engine.files.diagnostics import LbsceneUserError
 
         if plot is not None and plot.suffix.lower() != ".png":
@@ -134,7 +135,7 @@ def register(app: typer.Typer) -> None:
         if cie:
             lightings += [(k, "CIE/colour-science", v) for k, v in cie_lighting_spds().items()]
         for b in booths:
-            lightings += [(k, str(b), v) for k, v in booth_lighting_spds(b).items()]
+            lightings += [(k, str(b), v) for k, v in booth_lighting_spds(compile_booth(b)).items()]
         if not lightings:
             raise LbsceneUserError.single("LB500", "no lighting to check", "<command line>",
                                           expected="--cie or at least one --booth with lighting")

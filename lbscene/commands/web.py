@@ -25,7 +25,7 @@ def _err(code, message, value=None, expected=None, hint=None, loc=None):
 def _grey_sample():
     import numpy as np
 
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     # a neutral matte sample when only a booth is given: reflectance 0.5 on the 1 nm grid
     return SampleSpec.flat(np.full(471, 0.5), name="neutral grey 50 %")
@@ -33,7 +33,7 @@ def _grey_sample():
 
 def _load_sample(path: Path, allowed_dirs):
     from lbscene.engine.files.load import load_document
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
     from lbscene.schemas.sample import Sample
 
     return SampleSpec.from_document(load_document(path, Sample, allowed_dirs=allowed_dirs))

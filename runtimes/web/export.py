@@ -116,7 +116,7 @@ class WebExportInputs:
 
     ``lightings``: name → ``(diffuse, bake)`` (``'analytic'`` with ``None``, or ``'baked'``
     with :class:`~lbscene.runtimes.bake.BakeProducts`).  ``samples``: list of
-    :class:`~lbscene.runtimes.scene.SampleSpec`; ``displays``: list of
+    :class:`~lbscene.engine.scene.sample.SampleSpec`; ``displays``: list of
     :class:`~lbscene.runtimes.colour_bridge.DisplayUniforms`.
     """
 

@@ -10,7 +10,7 @@ import pytest
 
 from lbscene.engine.scene.compile import compile_booth
 from lbscene.engine.light.geometry import (Ball, Capsule, Rectangle, bodies_block,
-                                             segment_segment_distance_mm, swept_pairs_near_body)
+                                           segment_segment_distance_mm, swept_pairs_near_body)
 
 
 def _brute_distance(a, b, p0, p1, n=801):

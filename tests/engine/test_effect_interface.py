@@ -61,3 +61,66 @@ def test_wrong_hook_arity_and_unknown_backend_are_refused():
 
     with pytest.raises(TypeError, match="backends"):
         register_effect(Backend)
+
+
+def test_every_builtin_module_registers_the_effect_it_is_named_after():
+    import pkgutil
+    from importlib import import_module
+
+    from lbscene.engine.light.effects.registry import BUILTIN_PACKAGE
+
+    effects = available_effects()
+    names = [m.name for m in pkgutil.iter_modules(import_module(BUILTIN_PACKAGE).__path__)]
+    assert len(names) >= 9
+    for name in names:
+        assert name in effects, f"{BUILTIN_PACKAGE}.{name} registers no effect '{name}'"
+        assert effects[name].__module__ == f"{BUILTIN_PACKAGE}.{name}"
+
+
+PLUGIN = '''
+from pydantic import Field
+
+from lbscene.engine.light.effects.physics import PhysicalEffect
+from lbscene.engine.light.effects.registry import EffectParams, register_effect
+
+
+@register_effect
+class LampAgeing(PhysicalEffect):
+    id = "test_lamp_ageing"
+    summary = "Lamp output falls with burning hours."
+    kind = "geometric"
+    fit_parameters = {"level": (0.5, 1.0)}
+
+    class Params(EffectParams):
+        level: float = Field(1.0, gt=0, le=1, description="Relative output.")
+
+    @staticmethod
+    def modify_emitters(ctx, p, lamp, es):
+        return es.with_(weights=es.weights * p.level)
+'''
+
+
+def test_an_entry_point_plugin_is_registered_on_first_lookup(tmp_path, monkeypatch):
+    """A package that declares ``[project.entry-points."lbscene.effects"]`` (the CONTRIBUTING
+    example, installed as a distribution on the path) is registered beside the built-ins."""
+    import sys
+
+    from lbscene.engine.light.effects import registry
+
+    (tmp_path / "lbscene_test_plugin.py").write_text(PLUGIN)
+    dist = tmp_path / "lbscene_test_plugin-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: lbscene-test-plugin\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text(
+        "[lbscene.effects]\ntest_lamp_ageing = lbscene_test_plugin:LampAgeing\n")
+    builtins = set(available_effects())
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))   # restored afterwards
+    monkeypatch.setattr(registry, "_LOADED", False)
+    try:
+        effects = registry.available_effects()
+        assert set(effects) == builtins | {"test_lamp_ageing"}
+        assert effects["test_lamp_ageing"].__module__ == "lbscene_test_plugin"
+        assert registry.get_effect("test_lamp_ageing").Params().level == 1.0
+    finally:
+        sys.modules.pop("lbscene_test_plugin", None)

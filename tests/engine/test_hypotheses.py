@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.engine.light.effects.catalog import shifted_spectrum_1nm
+from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import shifted_spectrum_1nm
 from lbscene.engine.loop.hypotheses import (HYPOTHESES, AperturePlateHypothesis, DiffuserPlateHypothesis,
-                                       applicable_hypotheses, filter_basis)
+                                            applicable_hypotheses, filter_basis)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -15,14 +15,15 @@ import numpy as np
 import pytest
 
 from lbscene.engine.scene.compile import compile_booth
-from lbscene.engine.light.effects.catalog import ApertureOcclusionEffect, _occluder_rects
+from lbscene.engine.light.effects.builtin.aperture_occlusion import ApertureOcclusionEffect
+from lbscene.engine.light.plates import occluder_rects
 from lbscene.engine.light.radiosity import interior_patches, occluder_patches
 
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "validation"
 
 
 def _occluders(ir):
-    return _occluder_rects(ir, ApertureOcclusionEffect.Params())
+    return occluder_rects(ir, ApertureOcclusionEffect.Params())
 
 
 @pytest.fixture(scope="module")

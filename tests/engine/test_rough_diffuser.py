@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lbscene.engine.scene.compile import compile_booth
-from lbscene.engine.light.effects import catalog
+from lbscene.engine.light import plates
 from lbscene.engine.light.forward import ForwardModel
 from lbscene.engine.light.rough_slab import RoughSlab
 
@@ -68,10 +68,10 @@ def test_a_rough_plate_transmits_less_than_clear_glass_and_less_at_larger_incide
 
 
 def test_the_regime_switch_follows_the_lobe_footprint(ir):
-    fp = [catalog.plate_lobe_footprint_mm(_ir_with(ir, type="roughness", roughness=r), "L")
+    fp = [plates.plate_lobe_footprint_mm(_ir_with(ir, type="roughness", roughness=r), "L")
           for r in (0.04, 0.3, 0.9)]
     assert fp[0] < 1.0 < fp[1] < 50.0 and fp[2] > 25.0
-    assert catalog.plate_lobe_footprint_mm(_ir_with(ir, type="lambertian", diffuse_fraction=0.5), "L") == 0.0
+    assert plates.plate_lobe_footprint_mm(_ir_with(ir, type="lambertian", diffuse_fraction=0.5), "L") == 0.0
     P = np.array([[0.0, 0.0, 0.0]])
     kinds = lambda fm: [type(s).__name__ for s in fm.secondary_sources()]      # noqa: E731
     assert kinds(ForwardModel(ir, "L")) == []
@@ -92,7 +92,7 @@ def test_the_directional_source_reduces_to_a_lambertian_one(ir, monkeypatch):
 
     def lambertian(self, cos_i, cos_o, dphi, absorption=1.0):
         shape = np.broadcast_shapes(np.shape(cos_i), np.shape(cos_o), np.shape(dphi))
-        return np.broadcast_to(catalog._fresnel_relative(cos_i, n) * T0 / np.pi, shape)
+        return np.broadcast_to(plates.fresnel_relative(cos_i, n) * T0 / np.pi, shape)
 
     monkeypatch.setattr(RoughSlab, "btdf", lambertian)
     P = np.array([[0.0, 0.0, 0.0], [0.0, -250.0, 0.0], [400.0, 250.0, 0.0]])
@@ -135,8 +135,8 @@ def test_diffuse_light_crosses_a_rough_plate_with_its_hemispherical_transmittanc
     R = _fresnel_unpolarised(mu, n)
     Th = np.sum(w * (1 - R) / (1 + R) * mu)
     smooth = _ir_with(ir, type="roughness", roughness=0.01)
-    assert catalog.plate_diffuse_light_factor(smooth) == pytest.approx(Th / T0, abs=3e-3)
+    assert plates.plate_diffuse_light_factor(smooth) == pytest.approx(Th / T0, abs=3e-3)
     # rougher: less (light lost to the microfacets and trapped at grazing incidence)
-    assert catalog.plate_diffuse_light_factor(ir) < catalog.plate_diffuse_light_factor(smooth)
+    assert plates.plate_diffuse_light_factor(ir) < plates.plate_diffuse_light_factor(smooth)
     # Lambertian plates keep their declared transmittance
-    assert catalog.plate_diffuse_light_factor(_ir_with(ir, type="lambertian", diffuse_fraction=0.5)) == 1.0
+    assert plates.plate_diffuse_light_factor(_ir_with(ir, type="lambertian", diffuse_fraction=0.5)) == 1.0

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from lbscene.engine.light import rough_slab as rs
-from lbscene.engine.light.effects.physics import fresnel_slab_transmittance
+from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
 
 IOR = 1.49
 

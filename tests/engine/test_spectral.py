@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, band_labels, to_reference
+from lbscene.engine.spectra.bands import (DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM, BandGrid, band_labels,
+                                          to_reference)
 
 
 def test_default_grid_matches_seed_16_bands_400_700():

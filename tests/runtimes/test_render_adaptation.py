@@ -41,7 +41,7 @@ def _grey_pixel(a_booth, ctx, adaptation):
     from lbscene.runtimes.colour_bridge import srgb_display
     from lbscene.runtimes.graph import build_render_graph
     from lbscene.runtimes.render import Renderer
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     ir = compile_booth(a_booth / "tube-booth")
     r = Renderer(ir, build_render_graph(ir, "A"), SampleSpec.flat(np.full(471, GREY)), srgb_display(),

@@ -99,7 +99,7 @@ def _centre_xyz(renderer, view, size):
 @pytest.mark.parametrize("patch", ["moderate red", "blue sky", "neutral 5 (.70 D)", "yellow green"])
 def test_centre_pixel_matches_colour_science(gl_ctx, tube_ir, patch):
     from lbscene.runtimes.graph import SAMPLE_LIFT_MM
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     refl = _checker_1nm(patch)
     r = _renderer(tube_ir, "D65", SampleSpec.flat(refl, gloss_GU=0.0), gl_ctx)
@@ -120,7 +120,7 @@ def test_sample_reflectance_is_interpolated_between_measured_geometries(gl_ctx, 
     angle (15°) lies half way, so its XYZ is the mean of the two reflectances' XYZ (XYZ is
     linear in the reflectance).  At 45as45 it is the 45as45 reflectance itself."""
     from lbscene.runtimes.graph import SAMPLE_LIFT_MM
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     near, far = _checker_1nm("orange yellow"), _checker_1nm("purplish blue")
     sample = SampleSpec("two geometries", [(-15.0, "45as-15", near), (45.0, "45as45", far)])
@@ -148,7 +148,7 @@ def test_centre_pixel_in_the_spectralight_qc(gl_ctx, lighting):
     runtime's placement code."""
     from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.graph import SAMPLE_LIFT_MM
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
     from scipy.spatial.transform import Rotation
 
     ir = compile_booth(REPO / "booths" / "xrite-spectralight-qc")
@@ -218,7 +218,7 @@ def test_dither_matches_the_colour_module(gl_ctx, gonio_job):
 def test_display_stage_matches_the_colour_module(gl_ctx, tube_ir):
     from lbscene.engine.colour.display_model import load_display
     from lbscene.runtimes.colour_bridge import display_uniforms
-    from lbscene.runtimes.scene import SampleSpec
+    from lbscene.engine.scene.sample import SampleSpec
 
     path = REPO / "displays" / "tablet-wide-gamut.yaml"
     r = _renderer(tube_ir, "D65", SampleSpec.flat(_checker_1nm("purple")), gl_ctx,

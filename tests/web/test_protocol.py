@@ -15,13 +15,8 @@ import pytest
 
 from lbscene.engine.visual.protocol import balanced_blocks, load_session, plan_trials
 from lbscene.engine.visual.report import analyse
-from lbscene.engine.visual.stats import (
-    delta_e_to_grey_scale,
-    grey_scale_to_delta_e,
-    inter_observer_stress,
-    intra_observer_stress,
-    stress,
-)
+from lbscene.engine.visual.stats import (delta_e_to_grey_scale, grey_scale_to_delta_e, inter_observer_stress,
+                                         intra_observer_stress, stress)
 
 DATA = Path(__file__).resolve().parent / "data"
 SESSION = DATA / "session-tube.yaml"

@@ -7,7 +7,7 @@ import pytest
 
 from lbscene.engine.visual.model import case_delta_e00, reflectance_at
 from lbscene.runtimes.colour_bridge import srgb_display
-from lbscene.runtimes.scene import SampleSpec
+from lbscene.engine.scene.sample import SampleSpec
 
 
 def _d65_1nm():

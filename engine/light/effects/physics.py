@@ -53,8 +53,11 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Callable, ClassVar, Protocol
 
 import numpy as np
+from pydantic import Field
 
-from .registry import Effect
+from lbscene.schemas.base import Identifier
+
+from .registry import Effect, EffectParams
 
 __all__ = [
     "PhysicalEffect",
@@ -69,6 +72,10 @@ __all__ = [
     "PointLight",
     "ForwardContext",
     "effect_params",
+    "LampSelection",
+    "lamp_selected",
+    "lamps_on",
+    "lamps_on_ids",
 ]
 
 
@@ -191,7 +198,7 @@ class ForwardContext:
         fit changes intensities, σ, fractions… but never the geometry, so every model of
         the fit (they share ``cache``) computes them once.
         """
-        from lbscene.engine.light.forward import array_key
+        from lbscene.engine.files.disk_cache import array_key
 
         # one store per kind, each with its own bound: arrays of (receivers × emitters) add up
         store = self.cache.setdefault(("_memo", name.split(":", 1)[0]), {})
@@ -381,7 +388,7 @@ HOOKS: dict[str, int] = {
 BACKENDS = frozenset({"forward", "reference", "cycles", "realtime"})
 #: public class members of an effect that are not hooks
 _METADATA = frozenset({"Params", "applicable", "fit_parameters_for", "describe_params",
-                       "diagnosis_params", "refit_cost_s"})
+                       "diagnosis_params", "refit_cost_s", "check_class"})
 
 
 def check_effect_class(cls) -> None:
@@ -435,6 +442,11 @@ class PhysicalEffect(Effect):
     fit_initial: ClassVar[dict[str, float]] = {}
 
     @classmethod
+    def check_class(cls) -> None:
+        """The hook interface (:func:`check_effect_class`), checked when the class is registered."""
+        check_effect_class(cls)
+
+    @classmethod
     def applicable(cls, ir, lighting: str) -> str | None:
         """``None`` when the booth has what this effect needs, else why not."""
         return None
@@ -457,19 +469,21 @@ class PhysicalEffect(Effect):
 
 
 def lamps_on_ids(ir, lighting: str) -> list[str]:
+    """Ids of the lamps a lighting switches on."""
     return list(ir.lighting[lighting].lamps)
 
 
-def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
-    """Unpolarised transmittance of a non-absorbing plate (two interfaces, multiple reflections)."""
-    cos_i = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
-    sin_t = np.sqrt(np.clip(1.0 - cos_i ** 2, 0.0, None)) / ior
-    cos_t = np.sqrt(np.clip(1.0 - sin_t ** 2, 0.0, None))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rs = ((cos_i - ior * cos_t) / (cos_i + ior * cos_t)) ** 2
-        rp = ((ior * cos_i - cos_t) / (ior * cos_i + cos_t)) ** 2
-    rs = np.where(cos_i > 0, rs, 1.0)
-    rp = np.where(cos_i > 0, rp, 1.0)
-    ts = (1 - rs) / (1 + rs)      # slab with incoherent multiple reflections
-    tp = (1 - rp) / (1 + rp)
-    return 0.5 * (ts + tp)
+def lamps_on(ir, lighting: str) -> list:
+    """The lamps (``IRLamp``) a lighting switches on."""
+    return [ir.lamp(i) for i in ir.lighting[lighting].lamps]
+
+
+class LampSelection(EffectParams):
+    """Parameters of an effect that applies to some lamps (``lamps:``; default: every lamp on)."""
+
+    lamps: list[Identifier] | None = Field(None, description="Lamps it applies to (default: all on).")
+
+
+def lamp_selected(p, lamp_id: str) -> bool:
+    """Whether the effect parameters ``p`` (a :class:`LampSelection`) select lamp ``lamp_id``."""
+    return p.lamps is None or lamp_id in p.lamps

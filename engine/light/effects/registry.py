@@ -3,8 +3,9 @@ The effect registry: physical effects are plugins, looked up by id.
 
 An effect is a class deriving from :class:`Effect` with a unique ``id``, a
 pydantic ``Params`` model (the keys a booth file may write under
-``effects: {<id>: {...}}``) and the physics hooks the forward model calls.
-Built-in effects live in :mod:`lbscene.engine.light.effects.catalog`; third-party
+``effects: {<id>: {...}}``) and the physics hooks the forward model calls
+(:mod:`lbscene.engine.light.effects.physics`).  Built-in effects are the modules of
+:mod:`lbscene.engine.light.effects.builtin`, one effect per module; third-party
 packages register theirs through the ``lbscene.effects`` entry-point group::
 
     [project.entry-points."lbscene.effects"]
@@ -12,17 +13,36 @@ packages register theirs through the ``lbscene.effects`` entry-point group::
 
 Nothing is hard-wired: the booth schema accepts any registered id, the
 diagnosis tries every registered effect that a booth does not enable.
+
+Discovery
+---------
+The registry is the lowest module of the effect machinery: the hook interface, the
+forward model, radiosity and every effect import it, and it imports none of them (an
+import of the built-ins from here would close a circle: an effect's physics needs the
+forward model, which looks effects up here).  Instead, on the first lookup
+(:func:`get_effect`, :func:`available_effects`) it *discovers* the effects, as Mitsuba
+finds its plugins: it imports by name every module of the ``builtin`` package next to
+it (:data:`BUILTIN_PACKAGE`), in name order, then loads every ``lbscene.effects`` entry
+point.  Importing a module registers the classes it decorates with
+:func:`register_effect`.  A new built-in effect is a new module in ``builtin/``; no list
+names it.  A class checks itself when it is registered (:meth:`Effect.check_class`:
+:class:`~lbscene.engine.light.effects.physics.PhysicalEffect` checks its hooks).
 """
 
 from __future__ import annotations
 
+import pkgutil
+from importlib import import_module
 from importlib.metadata import entry_points
 from typing import ClassVar
 
 from lbscene.schemas.base import StrictModel
 
 __all__ = ["Effect", "EffectParams", "register_effect", "get_effect", "available_effects",
-           "UnknownEffectError"]
+           "UnknownEffectError", "BUILTIN_PACKAGE"]
+
+#: the package whose modules are the built-in effects (imported on the first lookup)
+BUILTIN_PACKAGE = __name__.rpartition(".")[0] + ".builtin"
 
 
 class EffectParams(StrictModel):
@@ -30,13 +50,18 @@ class EffectParams(StrictModel):
 
 
 class Effect:
-    """Base class of a physical effect plugin (see :mod:`lbscene.engine.light.effects.catalog`)."""
+    """Base class of a physical effect plugin (the built-ins: :mod:`lbscene.engine.light.effects.builtin`)."""
 
     id: ClassVar[str]
     Params: ClassVar[type[EffectParams]] = EffectParams
     summary: ClassVar[str] = ""
     #: 'geometric', 'spectral', 'instrument' or 'global' (used by diagnosis and planning)
     kind: ClassVar[str] = "geometric"
+
+    @classmethod
+    def check_class(cls) -> None:
+        """Raise ``TypeError`` if the class breaks its interface (called by
+        :func:`register_effect`; a plain :class:`Effect` has nothing to check)."""
 
 
 class UnknownEffectError(KeyError):
@@ -52,10 +77,8 @@ def register_effect(cls: type[Effect]) -> type[Effect]:
     eid = getattr(cls, "id", None)
     if not eid or not isinstance(eid, str):
         raise TypeError(f"{cls.__name__} needs a string class attribute 'id'")
-    from .physics import PhysicalEffect, check_effect_class
-
-    if issubclass(cls, PhysicalEffect):
-        check_effect_class(cls)        # unknown hook names, wrong arities, unknown backends
+    if issubclass(cls, Effect):
+        cls.check_class()              # a PhysicalEffect: unknown hook names, wrong arities, backends
     if eid in _REGISTRY and _REGISTRY[eid] is not cls:
         raise ValueError(f"effect id {eid!r} is already registered by {_REGISTRY[eid].__module__}")
     _REGISTRY[eid] = cls
@@ -67,7 +90,10 @@ def _load() -> None:
     if _LOADED:
         return
     _LOADED = True
-    from . import catalog  # noqa: F401  (registers the built-in effects)
+    builtin = import_module(BUILTIN_PACKAGE)
+    for info in sorted(pkgutil.iter_modules(builtin.__path__), key=lambda m: m.name):
+        if not info.name.startswith("_"):
+            import_module(f"{BUILTIN_PACKAGE}.{info.name}")   # registers its effect
 
     for ep in entry_points(group="lbscene.effects"):
         cls = ep.load()

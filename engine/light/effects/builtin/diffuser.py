@@ -1,0 +1,192 @@
+"""
+``diffuser``: a plate below the lamps transmits and scatters their light.
+
+Kind ``geometric`` (and spectral: the plate's transmittance).  Straight paths through the
+plate get its spectral transmittance and the Fresnel angular loss; a diffuse fraction is
+re-emitted from the plate's cells as a Lambertian source.  A ``roughness`` plate (rough
+glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on re-emitting
+cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  The plate itself
+(rectangle, transmittances) is :mod:`lbscene.engine.light.plates`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from lbscene.engine.light.effects.physics import (DirectionalSource, LambertianSource, PathChannel,
+                                                  PhysicalEffect)
+from lbscene.engine.light.effects.registry import EffectParams, register_effect
+from lbscene.engine.light.plates import (FresnelWeight, diffuser_fraction, diffuser_rect,
+                                         diffuser_transmittance_1nm, is_rough, plate_lobe_footprint_mm,
+                                         plate_slab, slab_relative)
+
+__all__ = ["DiffuserEffect"]
+
+
+@register_effect
+class DiffuserEffect(PhysicalEffect):
+    id = "diffuser"
+    summary = "A plate below the lamps transmits and scatters their light."
+    kind = "geometric"
+    #: residuals it may explain in the diagnosis: its light's distribution and, through the
+    #: plate's spectral transmittance, the spectrum
+    channels = ("spatial", "spectral")
+    order = 50
+    fit_parameters = {"diffuse_fraction": (0.0, 1.0)}
+    fit_initial = {"diffuse_fraction": 0.5}
+
+    class Params(EffectParams):
+        transmittance_scale: float = Field(1.0, gt=0, le=1.5,
+                                           description="Multiplier on the plate's transmittance.")
+        diffuse_fraction: float | None = Field(
+            None, ge=0, le=1, description="Override of the booth diffuser's diffuse fraction.")
+        cell_size_mm: float = Field(50.0, gt=1, le=1000,
+                                    description="Cell size of the re-emitting plate (diffuse part; "
+                                                "a rough plate's scattered light).")
+        rough_transport: Literal["auto", "regular", "scattered"] = Field(
+            "auto", description="A roughness plate's light: 'regular' (straight paths times the "
+                                "rough slab's transmittance T(θ)), 'scattered' (plate cells "
+                                "re-emit through the slab's BTDF), 'auto' (scattered when the "
+                                "lobe's footprint on the plate exceeds the cell size).")
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        return None if ir.diffuser is not None else "the booth has no diffuser: section"
+
+    @staticmethod
+    def _scattered(ctx, p) -> bool:
+        """Does a roughness plate's light go through the BTDF source (not straight paths)?"""
+        if not is_rough(ctx.ir) or p.rough_transport == "regular":
+            return False
+        if p.rough_transport == "scattered":
+            return True
+        return plate_lobe_footprint_mm(ctx.ir, ctx.lighting) > p.cell_size_mm
+
+    @classmethod
+    def path_factors(cls, ctx, p, es, rx):
+        ir = ctx.ir
+        if ir.diffuser is None:
+            return None
+        hit = ctx.fraction_hitting(es, rx, diffuser_rect(ir))
+        if not hit.any():
+            return None
+        if cls._scattered(ctx, p):
+            # every path through the plate is the directional source's (secondary_sources)
+            return [PathChannel(1.0 - hit, None, None)]
+
+        def angular():
+            d = rx[:, None, :] - es.points_mm[None, :, :]
+            cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+            return slab_relative(ir, cos_i)
+
+        rough = float(ir.diffuser.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior, rough]), angular)
+        fd = diffuser_fraction(ir, p)
+        through = hit * (1.0 - fd) * ang
+        return [PathChannel(through, "diffuser", diffuser_transmittance_1nm(ctx, p)),
+                PathChannel(1.0 - hit, None, None)]
+
+    @staticmethod
+    def _cells(d, cell_size_mm):
+        """The plate's cells as quads facing down (counter-clockwise seen from below)."""
+        (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
+        nu = max(1, int(np.ceil(sx / cell_size_mm)))
+        nv = max(1, int(np.ceil(sy / cell_size_mm)))
+        xs = cx - sx / 2 + sx * np.arange(nu + 1) / nu
+        ys = cy - sy / 2 + sy * np.arange(nv + 1) / nv
+        X0, Y0 = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
+        X1, Y1 = np.meshgrid(xs[1:], ys[1:], indexing="ij")
+        z = d.z_mm
+        return np.stack([np.stack([X0, Y0, np.full_like(X0, z)], -1),
+                         np.stack([X0, Y1, np.full_like(X0, z)], -1),
+                         np.stack([X1, Y1, np.full_like(X0, z)], -1),
+                         np.stack([X1, Y0, np.full_like(X0, z)], -1)], axis=2).reshape(-1, 4, 3)
+
+    @classmethod
+    def _rough_source(cls, ctx, p, direct, fd):
+        """The rough plate's cells as a :class:`DirectionalSource`: per cell and term
+
+        .. math:: L(ω_o) = (1 - f_d)\\,\\frac{T_\\text{decl}(λ)}{T_0}
+                  \\sum_{s} w_s \\sum_{e} f_T(ω_{i,se}, ω_o)\\, E_{se},
+
+        the slab's non-absorbing BTDF :math:`f_T` (:mod:`~lbscene.engine.light.rough_slab`) over the
+        irradiance :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` (area
+        weight :math:`w_s`) of the cell's top face, :math:`ω_i` its direction."""
+        from lbscene.engine.light.geometry import quad_subpoints
+        from lbscene.engine.light.rough_slab import clear_slab_normal_transmittance
+
+        ir = ctx.ir
+        d = ir.diffuser
+        polys = cls._cells(d, p.cell_size_mm)
+        k = 2
+        pts, w = quad_subpoints(polys, k)
+        top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
+        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
+        slab = plate_slab(ir)
+        spec = diffuser_transmittance_1nm(ctx, p) / clear_slab_normal_transmittance(d.ior)
+        merged: dict = {}
+        for pl in direct.per_point(top, up, exclude=(cls.id,)):
+            if pl.term.key in merged:
+                t, g, u = merged[pl.term.key]
+                merged[pl.term.key] = (t, np.concatenate([g, pl.geo], 1), np.concatenate([u, pl.from_dir], 1))
+            else:
+                merged[pl.term.key] = (pl.term, np.asarray(pl.geo), pl.from_dir)
+        if not merged:
+            return None
+        C = polys.shape[0]
+        descr, E, cos_i, phi_p = [], [], [], []
+        for t, g, u in merged.values():
+            descr.append(t.derived(spectral_key="diffuser", spectrum_factor=spec, kind="diffuser"))
+            # per cell: (C, k*k*N) irradiance × area weight, incidence cosine, azimuth of the
+            # light's propagation (away from the emitter)
+            E.append(((g.reshape(C, k * k, -1) * w[:, :, None]) * (1.0 - fd)).reshape(C, -1))
+            cos_i.append(np.clip(u[..., 2], 0.0, 1.0).reshape(C, -1))
+            phi_p.append(np.arctan2(-u[..., 1], -u[..., 0]).reshape(C, -1))
+
+        def radiance(dirs):
+            cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
+            phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
+            out = np.zeros(dirs.shape[:2] + (len(descr),))
+            for j in range(len(descr)):
+                f = slab.btdf(cos_i[j][:, None, :], cos_o[:, :, None],
+                              phi_o[:, :, None] - phi_p[j][:, None, :])            # (C, M, n)
+                out[:, :, j] = np.einsum("cmn,cn->cm", f, E[j])
+            return out
+
+        return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
+
+    @classmethod
+    def secondary_sources(cls, ctx, p, direct):
+        from lbscene.engine.light.geometry import quad_subpoints
+
+        ir = ctx.ir
+        if ir.diffuser is None:
+            return []
+        fd = diffuser_fraction(ir, p)
+        out = []
+        if cls._scattered(ctx, p) and fd < 1:
+            src = cls._rough_source(ctx, p, direct, fd)
+            if src is not None:
+                out.append(src)
+        if fd <= 0:
+            return out
+        d = ir.diffuser
+        polys = cls._cells(d, p.cell_size_mm)
+        pts, w = quad_subpoints(polys, 2)
+        top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
+        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
+        # light arriving on the top side: cos-weighted and reduced by the Fresnel angular factor
+        terms = direct(top, up, exclude=(cls.id,), incidence_weight=FresnelWeight(d.ior))
+        T = diffuser_transmittance_1nm(ctx, p)
+        exit_, descr = [], []
+        for t in terms:
+            e = (t.geo.reshape(polys.shape[0], -1) * w).sum(axis=1)
+            exit_.append(fd * e)
+            descr.append(t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser"))
+        if not exit_:
+            return out
+        return out + [LambertianSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)),
+                                       np.stack(exit_, axis=1), descr)]

@@ -1,0 +1,63 @@
+"""
+``lamp_spectrum_shift``: the lamps' spectrum differs from the declared one.
+
+Kind ``spectral``: a wavelength shift and a tilt (a lamp's colour changing with age),
+:func:`shifted_spectrum_1nm`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from lbscene.engine.light.effects.physics import EmitterSet, LampSelection, PhysicalEffect, lamp_selected
+from lbscene.engine.light.effects.registry import register_effect
+
+__all__ = ["LampSpectrumShiftEffect", "shifted_spectrum_1nm"]
+
+
+def shifted_spectrum_1nm(values_1nm, shift_nm: float, tilt: float = 0.0) -> np.ndarray:
+    """A 1 nm spectrum (360–830 nm) moved by ``shift_nm`` and tilted.
+
+    .. math:: S'(λ) = S(λ − Δλ)\\,\\bigl(1 + t\\,(λ − 555)/200\\bigr)
+
+    ``Δλ > 0`` moves every feature to longer wavelengths (linear interpolation; zero outside
+    the sampled range); the tilt ``t`` (clipped so the factor stays ≥ 0) is the slow change of a
+    lamp's colour with age.  Δλ = 0 and t = 0 return the spectrum unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s = np.zeros(471); s[200] = 1.0                 # a line at 560 nm
+    >>> int(np.argmax(shifted_spectrum_1nm(s, 3.0)))    # now at 563 nm
+    203
+    """
+    v = np.asarray(values_1nm, float)
+    wl = np.arange(360.0, 360.0 + v.size)
+    out = np.interp(wl - shift_nm, wl, v, left=0.0, right=0.0) if shift_nm else v.copy()
+    if tilt:
+        out = out * np.clip(1.0 + tilt * (wl - 555.0) / 200.0, 0.0, None)
+    return out
+
+
+@register_effect
+class LampSpectrumShiftEffect(PhysicalEffect):
+    id = "lamp_spectrum_shift"
+    summary = "The lamps' spectrum differs from the declared one: a wavelength shift and a tilt (ageing)."
+    kind = "spectral"
+    order = 29
+    fit_parameters = {"shift_nm": (-15.0, 15.0), "tilt": (-0.5, 0.5)}
+    fit_initial = {"shift_nm": 0.0, "tilt": 0.0}
+
+    class Params(LampSelection):
+        shift_nm: float = Field(0.0, ge=-50, le=50, description="Wavelength shift of the whole spectrum "
+                                "(positive: toward the red).")
+        tilt: float = Field(0.0, ge=-1, le=1, description="Relative slope of a linear tilt per 200 nm, "
+                            "around 555 nm (positive: redder).")
+
+    @staticmethod
+    def modify_emitters(ctx, p, lamp, es: EmitterSet) -> EmitterSet:
+        if not lamp_selected(p, lamp.id) or (p.shift_nm == 0.0 and p.tilt == 0.0):
+            return es
+        return es.with_(spectrum_1nm=shifted_spectrum_1nm(es.spectrum_1nm, p.shift_nm, p.tilt),
+                        spectral_key=es.spectral_key + (f"shift:{p.shift_nm:.6g}:{p.tilt:.6g}",))
