@@ -256,83 +256,106 @@ def _rect_quads(centre, normal, u, half, hole=None):
     return tuple(verts), tuple(tris)
 
 
-def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | None = None,
-                 effects: dict | None = None, surfaces: Literal["actual", "black"] = "actual",
-                 points=None, normals=None, point_names: Iterable[str] | None = None,
-                 light_paths: Literal["all", "direct"] = "all",
-                 environment: bool = True, maps: bool = True, grid: bool = True,
-                 env_width: int | None = None, name: str | None = None, seed: int = 0) -> BakeJob:
-    """The bake job of one lighting configuration of a compiled booth."""
-    if lighting not in ir.lighting:
-        raise KeyError(lighting)
-    effects = dict(ir.effects if effects is None else effects)
-    grid_spec = BandGridSpec(**{k: ir.bands[k] for k in ("first_centre_nm", "width_nm", "count")})
-    g = ir.grid
-    nb = g.count
-    notes = []
-    from lbscene.engine.light.effects.physics import BACKENDS
-    from lbscene.engine.light.effects.registry import get_effect
-
-    # effects a bake does not model are named in the job, never silently dropped (instrument
-    # effects describe a meter's reading, not the light in the booth)
-    off = sorted(e for e in effects if "cycles" not in getattr(get_effect(e), "backends", BACKENDS))
-    if off:
-        notes.append(f"not modelled by the bake (its effect declares no 'cycles' backend): {', '.join(off)}")
-
-    # ---- turning luminaire (illumination fixed to a rotating platform)
-    pf = ir.platform
-    turning = bool(pf is not None and pf.illumination_fixed_to_platform
-                   and any(x.platform_rotation_deg for x in ir.geometries))
-    lum_group = LUMINAIRE_GROUP if turning else None
-
-    # ---- materials
+def _job_materials(ir, lighting: str, nb: int) -> dict[str, JobMaterial]:
+    """The booth's materials with the lighting's band reflectances, and the black of the job."""
     materials = {BLACK: JobMaterial(type="diffuse", reflectance=(0.0,) * nb)}
     for mid, m in ir.materials.items():
         refl = m.reflectance_bands_by_lighting.get(lighting) or m.reflectance.bands
         refl = tuple(float(min(max(x, 0.0), 1.0)) for x in refl)
         materials[_jid(mid)] = JobMaterial(type=m.type, reflectance=refl, roughness=m.roughness)
+    return materials
 
-    def mat(mid):
-        return BLACK if (surfaces == "black" or mid is None) else _jid(mid)
 
-    # ---- surfaces
-    meshes = []
-    for s in ir.surfaces:
-        grp = lum_group if s.role in ("mesh", "platform") else None
-        meshes.append(JobMesh(id=_jid(f"surface.{s.id}"), material=mat(s.material),
-                              vertices_mm=s.vertices_mm, triangles=s.triangles, role=s.role, group=grp))
-
-    # ---- occluders
+def _occluder_meshes(ir, lighting: str, effects: dict, mat, lum_group, notes: list[str]) -> list[JobMesh]:
+    """The occluders the ``aperture_occlusion`` effect selects, their openings scaled."""
     occ = _effect(effects, "aperture_occlusion")
-    if occ is not None:
-        scale = float(occ.get("opening_scale", 1.0))
-        su, sv = scale * float(occ.get("opening_scale_u", 1.0)), scale * float(occ.get("opening_scale_v", 1.0))
-        on = set(ir.lighting[lighting].lamps)
-        for o in ir.occluders:
-            if occ.get("occluders") is not None and o.id not in occ["occluders"]:
-                continue
-            half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
-            hole = None
-            if o.type == "aperture_plate" and o.opening_mm is not None:
-                hole = (min(o.opening_mm[0] * su / 2, half[0]), min(o.opening_mm[1] * sv / 2, half[1]))
-            # drawn a hair to the side the normal points to (away from the lamps it shades): an
-            # occluder often coincides with a face of a luminaire mesh (BYK: the aperture plate is
-            # the cavity's front face) and two coplanar faces z-fight in Cycles, so random parts
-            # of the cavity's white inside would turn the plate's black
-            c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * np.asarray(o.normal, float)
-            v, t = _rect_quads(c, o.normal, o.u_axis, half, hole)
-            meshes.append(JobMesh(id=_jid(f"occluder.{o.id}"), material=mat(o.material), vertices_mm=v,
-                                  triangles=t, role="occluder", group=lum_group))
-            if o.lamps is not None and on - set(o.lamps):
-                notes.append(f"occluder {o.id} blocks every lamp in Cycles (the model: only "
-                             f"{', '.join(o.lamps)})")
+    if occ is None:
+        return []
+    meshes = []
+    scale = float(occ.get("opening_scale", 1.0))
+    su, sv = scale * float(occ.get("opening_scale_u", 1.0)), scale * float(occ.get("opening_scale_v", 1.0))
+    on = set(ir.lighting[lighting].lamps)
+    for o in ir.occluders:
+        if occ.get("occluders") is not None and o.id not in occ["occluders"]:
+            continue
+        half = (o.size_mm[0] / 2, o.size_mm[1] / 2)
+        hole = None
+        if o.type == "aperture_plate" and o.opening_mm is not None:
+            hole = (min(o.opening_mm[0] * su / 2, half[0]), min(o.opening_mm[1] * sv / 2, half[1]))
+        # drawn a hair to the side the normal points to (away from the lamps it shades): an
+        # occluder often coincides with a face of a luminaire mesh (BYK: the aperture plate is
+        # the cavity's front face) and two coplanar faces z-fight in Cycles, so random parts
+        # of the cavity's white inside would turn the plate's black
+        c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * np.asarray(o.normal, float)
+        v, t = _rect_quads(c, o.normal, o.u_axis, half, hole)
+        meshes.append(JobMesh(id=_jid(f"occluder.{o.id}"), material=mat(o.material), vertices_mm=v,
+                              triangles=t, role="occluder", group=lum_group))
+        if o.lamps is not None and on - set(o.lamps):
+            notes.append(f"occluder {o.id} blocks every lamp in Cycles (the model: only "
+                         f"{', '.join(o.lamps)})")
+    return meshes
 
-    # ---- lamps
-    emitters = []
+
+def _point_lamp(lamp, bands, R_bands, profile, win, lum_group) -> list:
+    """A point lamp (radius 0, as in the analytic model: exact inverse-square law, hard shadows;
+    camera rays do not see it, see the environment maps' direct product) and its mirror image."""
+    pos = tuple(float(c) for c in lamp.position_mm)
+    out = [PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim, positions_mm=(pos,),
+                         intensity_W_sr_nm=tuple(float(x) for x in bands), profile=profile,
+                         radius_mm=0.0, group=lum_group)]
+    if win is not None:
+        n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
+        img = _reflect_point(pos, c, n)
+        out.append(PointEmitters(
+            id=_jid(f"lamp.{lamp.id}.mirror"), aim=tuple(_reflect(lamp.aim, n)),
+            positions_mm=(tuple(float(x) for x in img),),
+            intensity_W_sr_nm=tuple(float(x) for x in R_bands),
+            profile=_mirrored_profile(profile, n), radius_mm=0.0, group=lum_group, window=win))
+    return out
+
+
+def _surface_lamp(lamp, bands, R_bands, profile, win, effects: dict, lum_group) -> list:
+    """The lamp's own surface — a tube's lateral surface (and caps), a panel's rectangle, a
+    bulb's sphere — of radiance I_ref / A (a tube-end falloff weights it along the axis), and
+    its mirror image."""
+    v, t, area_m2 = _lamp_mesh(lamp)
+    tef = _effect(effects, "tube_end_falloff", lamp.id)
+    aw = None
+    if tef is not None and lamp.kind == "tube":
+        aw = AxialWeight(centre_mm=tuple(float(x) for x in lamp.position_mm), axis=lamp.axis,
+                         length_mm=float(lamp.length_mm), end_level=float(tef.get("end_level", 0.5)),
+                         falloff_length_mm=float(tef.get("falloff_length_mm", 100.0)))
+    out = [AreaEmitter(
+        id=_jid(f"lamp.{lamp.id}"), vertices_mm=v, triangles=t,
+        radiance_W_sr_m2_nm=tuple(float(x) for x in bands / area_m2),
+        profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False, axial_weight=aw)]
+    if win is not None:
+        # its mirror image (the image method): the same surface mirrored across the mirror
+        # plane, radiance × the mirror's reflectance, shining only through the mirror
+        n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
+        mv = _reflect_point(v, c, n)
+        mt = tuple((a, cc, b) for a, b, cc in t)           # mirrored: keep facing out
+        maw = None if aw is None else aw.model_copy(update={
+            "centre_mm": tuple(float(x) for x in _reflect_point(aw.centre_mm, c, n)),
+            "axis": tuple(_reflect(aw.axis, n))})
+        out.append(AreaEmitter(
+            id=_jid(f"lamp.{lamp.id}.mirror"), vertices_mm=tuple(tuple(float(x) for x in p) for p in mv),
+            triangles=mt, radiance_W_sr_m2_nm=tuple(float(x) for x in R_bands / area_m2),
+            profile=_mirrored_profile(profile, n), aim=tuple(_reflect(lamp.aim, n)),
+            group=lum_group, visible_to_camera=False, axial_weight=maw, window=win))
+    return out
+
+
+def _lamp_emitters(ir, lighting: str, effects: dict, lum_group, turning: bool,
+                   notes: list[str]) -> tuple[list, list[JobMesh]]:
+    """The emitters of the lamps the lighting switches on (and their mirror images), and the
+    mirrors themselves as absorbing plates."""
+    from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
+
+    g = ir.grid
+    emitters, meshes = [], []
     for lamp, level in ir.lamps_on(lighting):
         # shifted and filtered as the forward model's emitters are (one definition)
-        from lbscene.engine.light.lamp_spectrum import lamp_spectrum_1nm
-
         spec = lamp_spectrum_1nm(ir, lamp, effects) * float(level)
         bands = g.integrate(spec)
         profile = _profile(lamp, effects)
@@ -348,167 +371,197 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
             R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)
             R_bands = g.integrate(spec * R)
         if lamp.kind == "point":
-            # a true point (radius 0), as in the analytic model: exact inverse-square law, hard
-            # shadows; camera rays do not see it (see the environment maps' direct product)
-            pos = tuple(float(c) for c in lamp.position_mm)
-            emitters.append(PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim, positions_mm=(pos,),
-                                          intensity_W_sr_nm=tuple(float(x) for x in bands), profile=profile,
-                                          radius_mm=0.0, group=lum_group))
-            if win is not None:
-                n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
-                img = _reflect_point(pos, c, n)
-                emitters.append(PointEmitters(
-                    id=_jid(f"lamp.{lamp.id}.mirror"), aim=tuple(_reflect(lamp.aim, n)),
-                    positions_mm=(tuple(float(x) for x in img),),
-                    intensity_W_sr_nm=tuple(float(x) for x in R_bands),
-                    profile=_mirrored_profile(profile, n), radius_mm=0.0, group=lum_group, window=win))
+            emitters.extend(_point_lamp(lamp, bands, R_bands, profile, win, lum_group))
         else:
-            # the lamp's own surface: a tube's lateral surface (and caps), a panel's rectangle,
-            # a bulb's sphere, of radiance I_ref / A; a tube-end falloff weights it along the axis
-            v, t, area_m2 = _lamp_mesh(lamp)
-            tef = _effect(effects, "tube_end_falloff", lamp.id)
-            aw = None
-            if tef is not None and lamp.kind == "tube":
-                aw = AxialWeight(centre_mm=tuple(float(x) for x in lamp.position_mm), axis=lamp.axis,
-                                 length_mm=float(lamp.length_mm), end_level=float(tef.get("end_level", 0.5)),
-                                 falloff_length_mm=float(tef.get("falloff_length_mm", 100.0)))
-            emitters.append(AreaEmitter(
-                id=_jid(f"lamp.{lamp.id}"), vertices_mm=v, triangles=t,
-                radiance_W_sr_m2_nm=tuple(float(x) for x in bands / area_m2),
-                profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False, axial_weight=aw))
-            if win is not None:
-                # its mirror image (the image method): the same surface mirrored across the mirror
-                # plane, radiance × the mirror's reflectance, shining only through the mirror
-                n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
-                mv = _reflect_point(v, c, n)
-                mt = tuple((a, cc, b) for a, b, cc in t)           # mirrored: keep facing out
-                maw = None if aw is None else aw.model_copy(update={
-                    "centre_mm": tuple(float(x) for x in _reflect_point(aw.centre_mm, c, n)),
-                    "axis": tuple(_reflect(aw.axis, n))})
-                emitters.append(AreaEmitter(
-                    id=_jid(f"lamp.{lamp.id}.mirror"), vertices_mm=tuple(tuple(float(x) for x in p) for p in mv),
-                    triangles=mt, radiance_W_sr_m2_nm=tuple(float(x) for x in R_bands / area_m2),
-                    profile=_mirrored_profile(profile, n), aim=tuple(_reflect(lamp.aim, n)),
-                    group=lum_group, visible_to_camera=False, axial_weight=maw, window=win))
+            emitters.extend(_surface_lamp(lamp, bands, R_bands, profile, win, effects, lum_group))
         if win is not None:
             # the mirror itself: an absorbing plate that blocks the lamp's back light
             mv_, mt_ = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
             meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=mv_,
                                   triangles=mt_, role="mirror", group=lum_group))
+    return emitters, meshes
 
-    # ---- the bodies of the lamps that are off: black objects in the light's way, as they are
-    # in the booth (and in the model's inter-reflection, `lamp_bodies`)
+
+def _lamp_bodies_off(ir, lighting: str, effects: dict) -> list[JobMesh]:
+    """The bodies of the lamps that are off: black objects in the light's way, as they are in
+    the booth (and in the model's inter-reflection, ``lamp_bodies``)."""
     ip = effects.get("interreflection") or {}
-    if ip.get("lamp_bodies", True) is not False:
-        on_ids = {lp.id for lp, _ in ir.lamps_on(lighting)}
-        for lamp in ir.lamps:
-            if lamp.id in on_ids or lamp.kind == "point" or lamp.mount != "booth":
-                continue
-            v, t, _ = _lamp_mesh(lamp)
-            meshes.append(JobMesh(id=_jid(f"lamp_body.{lamp.id}"), material=BLACK, vertices_mm=v,
-                                  triangles=t, role="lamp_body", group=None))
+    if ip.get("lamp_bodies", True) is False:
+        return []
+    meshes = []
+    on_ids = {lp.id for lp, _ in ir.lamps_on(lighting)}
+    for lamp in ir.lamps:
+        if lamp.id in on_ids or lamp.kind == "point" or lamp.mount != "booth":
+            continue
+        v, t, _ = _lamp_mesh(lamp)
+        meshes.append(JobMesh(id=_jid(f"lamp_body.{lamp.id}"), material=BLACK, vertices_mm=v,
+                              triangles=t, role="lamp_body", group=None))
+    return meshes
 
-    # ---- diffuser
-    sheets = []
+
+def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[TransmissiveSheet]:
+    """The diffuser plate as a thin transmissive sheet, when the ``diffuser`` effect is on."""
     dp = _effect(effects, "diffuser")
-    if dp is not None and ir.diffuser is not None:
-        d = ir.diffuser
-        T = np.clip(np.asarray(d.transmittance.bands) * float(dp.get("transmittance_scale", 1.0)), 0, 1)
-        sc = d.scattering
-        fd = dp.get("diffuse_fraction")
-        if fd is None:
-            fd = sc.get("diffuse_fraction", 0.0) if sc.get("type") == "lambertian" else 0.0
-        v, t = _rect_quads((d.centre_mm[0], d.centre_mm[1], d.z_mm), (0, 0, -1), (1, 0, 0),
-                           (d.size_mm[0] / 2, d.size_mm[1] / 2))
-        if sc.get("type") == "roughness":
-            from lbscene.engine.light.plates import plate_slab, slab_relative
-            from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
+    if dp is None or ir.diffuser is None:
+        return []
+    d = ir.diffuser
+    T = np.clip(np.asarray(d.transmittance.bands) * float(dp.get("transmittance_scale", 1.0)), 0, 1)
+    sc = d.scattering
+    fd = dp.get("diffuse_fraction")
+    if fd is None:
+        fd = sc.get("diffuse_fraction", 0.0) if sc.get("type") == "lambertian" else 0.0
+    v, t = _rect_quads((d.centre_mm[0], d.centre_mm[1], d.z_mm), (0, 0, -1), (1, 0, 0),
+                       (d.size_mm[0] / 2, d.size_mm[1] / 2))
+    if sc.get("type") == "roughness":
+        from lbscene.engine.light.plates import plate_slab, slab_relative
+        from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
 
-            r = float(sc["roughness"])
-            c60 = np.array([0.5])
-            dev = float(slab_relative(ir, c60)[0] / (fresnel_slab_transmittance(c60, d.ior)[0] /
+        r = float(sc["roughness"])
+        c60 = np.array([0.5])
+        dev = float(slab_relative(ir, c60)[0] / (fresnel_slab_transmittance(c60, d.ior)[0] /
                                                   fresnel_slab_transmittance(np.ones(1), d.ior)[0])) - 1
-            notes.append(f"diffuser roughness {r:g} (GGX α = {r * r:.4g}): a thin sheet with the clear "
-                         f"plate's Fresnel angular transmittance; the rough slab's T(θ) ({100 * dev:+.1f} % "
-                         f"at 60°) and its lobe (90 % within "
-                         f"{float(plate_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
-                         f"in the bake")
-        sheets.append(TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
-                                        transmittance=tuple(float(x) for x in T), ior=d.ior,
-                                        roughness=float(sc.get("roughness", 0.0)),
-                                        diffuse_fraction=float(fd), thickness_mm=d.thickness_mm,
-                                        group=lum_group))
+        notes.append(f"diffuser roughness {r:g} (GGX α = {r * r:.4g}): a thin sheet with the clear "
+                     f"plate's Fresnel angular transmittance; the rough slab's T(θ) ({100 * dev:+.1f} % "
+                     f"at 60°) and its lobe (90 % within "
+                     f"{float(plate_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
+                     f"in the bake")
+    return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
+                              transmittance=tuple(float(x) for x in T), ior=d.ior,
+                              roughness=float(sc.get("roughness", 0.0)),
+                              diffuse_fraction=float(fd), thickness_mm=d.thickness_mm,
+                              group=lum_group)]
 
-    # ---- products
+
+def _environment_products(ir, quality: str, env_width: int | None, turning: bool) -> list:
+    """Environment maps of the sample's surroundings (with their direct-light points): one at the
+    sample, and one per geometry where the sample is, in its frame, where the platform moves it."""
     products = []
+    pf = ir.platform
     sample = np.asarray(ir.sample_position_mm, float)
+    width = env_width or ENV_WIDTH[quality]
+
+    def env_pair(suffix, up, fwd, geometry, transforms, centre=sample):
+        pos = tuple(float(x) for x in centre + 1.0 * up)
+        dirs = [("up", up)] + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
+        direct = IrradiancePointsProduct(
+            id=_jid(f"sample_direct{suffix}"), light_paths="direct", group_transforms=transforms,
+            points=tuple(MeasurementPoint(position_mm=pos, normal=tuple(map(float, d)), name=nm)
+                         for nm, d in dirs), offset_mm=0.0)
+        env = EnvironmentMapProduct(id=_jid(f"env{suffix}"), position_mm=pos, forward=tuple(fwd),
+                                    up=tuple(up), width_px=width, geometry=geometry,
+                                    group_transforms=transforms, direct_product=direct.id)
+        products.extend([env, direct])
+
+    z, y = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
+    if not turning:
+        env_pair("", z, y, None, {})
+    # one map per geometry where the sample is, in its frame: every geometry of a luminaire
+    # that turns with the platform (the luminaire turned with it); the tilted ones of a
+    # platform under fixed lamps (the SpectraLight's 45° stand carries the sample 105 mm up,
+    # ~1.4× the rest position's direct light)
+    for geo in (ir.geometries if pf is not None else ()):
+        if not (turning or geo.platform_rotation_deg):
+            continue
+        tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
+                            centre_mm=pf.pivot_mm)
+        M = tr.matrix()[:3, :3]
+        pivot = np.asarray(pf.pivot_mm, float)
+        env_pair(f".{geo.name}", M @ z, M @ y, geo.name, {LUMINAIRE_GROUP: tr} if turning else {},
+                 centre=M @ (sample - pivot) + pivot)
+    return products
+
+
+def _map_products(ir, quality: str, light_paths: str, turning: bool) -> list:
+    """Irradiance maps of the floor, and of a platform that does not carry the lamps."""
+    cell = MAP_CELL_MM[quality]
+    it = ir.interior
+    pf = ir.platform
+    nx, ny = max(2, round(it.width_mm / cell)), max(2, round(it.depth_mm / cell))
+    products = [IrradianceMapProduct(id="floor", origin_mm=(-it.width_mm / 2, -it.depth_mm / 2, 0.0),
+                                     size_mm=(it.width_mm, it.depth_mm), resolution=(nx, ny),
+                                     light_paths=light_paths)]
+    if pf is not None and not turning:
+        cx, cy, cz = pf.centre_mm
+        sx, sy = pf.size_mm
+        products.append(IrradianceMapProduct(
+            id="platform", origin_mm=(cx - sx / 2, cy - sy / 2, cz), size_mm=(sx, sy),
+            resolution=(max(2, round(sx / cell)), max(2, round(sy / cell))), light_paths=light_paths))
+    return products
+
+
+def _points_product(ir, points, normals, point_names, light_paths: str) -> IrradiancePointsProduct:
+    """Irradiance at points: the given ones, or the 55-point grid around the sample (facing up)."""
+    if points is None:
+        P = grid_points(ir)
+        names = [f"g{i:02d}" for i in range(len(P))]
+        N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    else:
+        P = np.atleast_2d(np.asarray(points, float))
+        N = np.tile([0.0, 0.0, 1.0], (len(P), 1)) if normals is None else \
+            np.broadcast_to(np.asarray(normals, float), P.shape)
+        names = list(point_names) if point_names is not None else [f"p{i}" for i in range(len(P))]
+    return IrradiancePointsProduct(
+        id="grid" if points is None else "points",
+        points=tuple(MeasurementPoint(position_mm=tuple(map(float, p)), normal=tuple(map(float, n)),
+                                      name=nm) for p, n, nm in zip(P, N, names)),
+        light_paths=light_paths)
+
+
+def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | None = None,
+                 effects: dict | None = None, surfaces: Literal["actual", "black"] = "actual",
+                 points=None, normals=None, point_names: Iterable[str] | None = None,
+                 light_paths: Literal["all", "direct"] = "all",
+                 environment: bool = True, maps: bool = True, grid: bool = True,
+                 env_width: int | None = None, name: str | None = None, seed: int = 0) -> BakeJob:
+    """The bake job of one lighting configuration of a compiled booth."""
+    if lighting not in ir.lighting:
+        raise KeyError(lighting)
+    effects = dict(ir.effects if effects is None else effects)
+    grid_spec = BandGridSpec(**{k: ir.bands[k] for k in ("first_centre_nm", "width_nm", "count")})
+    notes = []
+    from lbscene.engine.light.effects.physics import BACKENDS
+    from lbscene.engine.light.effects.registry import get_effect
+
+    # effects a bake does not model are named in the job, never silently dropped (instrument
+    # effects describe a meter's reading, not the light in the booth)
+    off = sorted(e for e in effects if "cycles" not in getattr(get_effect(e), "backends", BACKENDS))
+    if off:
+        notes.append(f"not modelled by the bake (its effect declares no 'cycles' backend): {', '.join(off)}")
+
+    # a turning luminaire (illumination fixed to a rotating platform) is one group
+    pf = ir.platform
+    turning = bool(pf is not None and pf.illumination_fixed_to_platform
+                   and any(x.platform_rotation_deg for x in ir.geometries))
+    lum_group = LUMINAIRE_GROUP if turning else None
+
+    def mat(mid):
+        return BLACK if (surfaces == "black" or mid is None) else _jid(mid)
+
+    meshes = [JobMesh(id=_jid(f"surface.{s.id}"), material=mat(s.material), vertices_mm=s.vertices_mm,
+                      triangles=s.triangles, role=s.role,
+                      group=lum_group if s.role in ("mesh", "platform") else None)
+              for s in ir.surfaces]
+    meshes += _occluder_meshes(ir, lighting, effects, mat, lum_group, notes)
+    emitters, mirrors = _lamp_emitters(ir, lighting, effects, lum_group, turning, notes)
+    meshes += mirrors
+    meshes += _lamp_bodies_off(ir, lighting, effects)
+    sheets = _diffuser_sheet(ir, effects, lum_group, notes)
+
+    products = []
     if environment:
-        width = env_width or ENV_WIDTH[quality]
-
-        def env_pair(suffix, up, fwd, geometry, transforms, centre=sample):
-            pos = tuple(float(x) for x in centre + 1.0 * up)
-            dirs = [("up", up)] + [(f"dir{k:02d}", d) for k, d in enumerate(_sphere_dirs(62))]
-            direct = IrradiancePointsProduct(
-                id=_jid(f"sample_direct{suffix}"), light_paths="direct", group_transforms=transforms,
-                points=tuple(MeasurementPoint(position_mm=pos, normal=tuple(map(float, d)), name=nm)
-                             for nm, d in dirs), offset_mm=0.0)
-            env = EnvironmentMapProduct(id=_jid(f"env{suffix}"), position_mm=pos, forward=tuple(fwd),
-                                        up=tuple(up), width_px=width, geometry=geometry,
-                                        group_transforms=transforms, direct_product=direct.id)
-            products.extend([env, direct])
-
-        z, y = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
-        if not turning:
-            env_pair("", z, y, None, {})
-        # one map per geometry where the sample is, in its frame: every geometry of a luminaire
-        # that turns with the platform (the luminaire turned with it); the tilted ones of a
-        # platform under fixed lamps (the SpectraLight's 45° stand carries the sample 105 mm up,
-        # ~1.4× the rest position's direct light)
-        for geo in (ir.geometries if pf is not None else ()):
-            if not (turning or geo.platform_rotation_deg):
-                continue
-            tr = RigidTransform(axis=pf.rotation_axis, angle_deg=float(geo.platform_rotation_deg or 0.0),
-                                centre_mm=pf.pivot_mm)
-            M = tr.matrix()[:3, :3]
-            pivot = np.asarray(pf.pivot_mm, float)
-            env_pair(f".{geo.name}", M @ z, M @ y, geo.name, {LUMINAIRE_GROUP: tr} if turning else {},
-                     centre=M @ (sample - pivot) + pivot)
+        products += _environment_products(ir, quality, env_width, turning)
     if maps:
-        cell = MAP_CELL_MM[quality]
-        it = ir.interior
-        nx, ny = max(2, round(it.width_mm / cell)), max(2, round(it.depth_mm / cell))
-        products.append(IrradianceMapProduct(id="floor", origin_mm=(-it.width_mm / 2, -it.depth_mm / 2, 0.0),
-                                             size_mm=(it.width_mm, it.depth_mm), resolution=(nx, ny),
-                                             light_paths=light_paths))
-        if pf is not None and not turning:
-            cx, cy, cz = pf.centre_mm
-            sx, sy = pf.size_mm
-            products.append(IrradianceMapProduct(
-                id="platform", origin_mm=(cx - sx / 2, cy - sy / 2, cz), size_mm=(sx, sy),
-                resolution=(max(2, round(sx / cell)), max(2, round(sy / cell))), light_paths=light_paths))
+        products += _map_products(ir, quality, light_paths, turning)
     if grid or points is not None:
-        if points is None:
-            P = grid_points(ir)
-            names = [f"g{i:02d}" for i in range(len(P))]
-            N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
-        else:
-            P = np.atleast_2d(np.asarray(points, float))
-            N = np.tile([0.0, 0.0, 1.0], (len(P), 1)) if normals is None else \
-                np.broadcast_to(np.asarray(normals, float), P.shape)
-            names = list(point_names) if point_names is not None else [f"p{i}" for i in range(len(P))]
-        products.append(IrradiancePointsProduct(
-            id="grid" if points is None else "points",
-            points=tuple(MeasurementPoint(position_mm=tuple(map(float, p)), normal=tuple(map(float, n)),
-                                          name=nm) for p, n, nm in zip(P, N, names)),
-            light_paths=light_paths))
+        products.append(_points_product(ir, points, normals, point_names, light_paths))
 
     source = {"ir_hash": ir.content_hash, "booth": ir.booth_name, "lighting": lighting,
               "surfaces": surfaces, "effects": ",".join(sorted(effects))}
     if notes:
         source["notes"] = "; ".join(notes)
-    return BakeJob(name=_jid(name or lighting), source=source, bands=grid_spec, materials=materials,
-                   meshes=tuple(meshes), emitters=tuple(emitters), sheets=tuple(sheets),
-                   products=tuple(products),
+    return BakeJob(name=_jid(name or lighting), source=source, bands=grid_spec,
+                   materials=_job_materials(ir, lighting, ir.grid.count), meshes=tuple(meshes),
+                   emitters=tuple(emitters), sheets=tuple(sheets), products=tuple(products),
                    quality=Quality(preset=quality, samples=samples, seed=seed))
 
 

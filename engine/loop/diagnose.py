@@ -435,6 +435,7 @@ def _coarsen(effects: dict) -> dict:
 def candidate_config(ir, lighting, effects, eid, base_free, known):
     """Effects and free parameters with candidate ``eid`` added."""
     from lbscene.engine.light.effects.registry import get_effect
+
     from .fit import default_free_parameters
 
     cls = get_effect(eid)
@@ -558,16 +559,41 @@ def _channel_check(items: tuple[str, ...], gain: tuple[float, float], n_params: 
     return "; ".join(out)
 
 
-def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = None,
-             progress=None, cache: dict | None = None) -> Diagnosis:
-    """Refit with each missing effect and rank the suspects (see the module docstring)."""
-    from lbscene.engine.light.effects.registry import available_effects
+@dataclass
+class _Base:
+    """The booth as declared, fitted: what every candidate refit starts from and is scored against."""
 
+    meas: object
+    effects: dict                    # the booth's effects (coarsened for the refits)
+    free: list                       # the base fit's free parameters, started at its solution
+    noise: NoiseModel
+    cache: dict
+    fit: FitResult
+    bic: float
+    logn: float
+    pts: np.ndarray                  # the illuminance readings' points (residual structure)
+    parts: tuple[float, float]       # χ² on the readings and on the white-tile spectrum
+    channel_sizes: tuple[int, int]
+    ctest: dict                      # consistent_with_noise's keyword arguments
+    known_all: bool                  # every lamp group's output is known
+    #: geometry caches shared by the refits on a booth augmented with the same hardware
+    ir_caches: dict = field(default_factory=dict)
+
+    @property
+    def ir(self):
+        return self.meas.ir
+
+    @property
+    def lighting(self) -> str:
+        return self.meas.lighting
+
+
+def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list, list]:
+    """Fit the booth as declared (with the joint parameters the data pin down): the
+    :class:`_Base`, the refitted joint parameters and the held ones."""
     ir, lighting = meas.ir, meas.lighting
-    booth_effects = base_problem.effects
-    effects = _coarsen(booth_effects)
+    effects = _coarsen(base_problem.effects)
     noise = noise_model(meas)
-    cache = base_problem.cache if cache is None else cache
     joint = _enabled_fit_params(ir, lighting, effects, base_problem.free)
     # which joint parameters are affordable is decided by each effect's analytic cost model
     # (refit_cost_s), never by timing: the verdict must not depend on the machine's load
@@ -580,15 +606,26 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     # only ones far from their optimum, so the refits need a few iterations instead of dozens
     base_free = [replace(fp, initial=float(np.clip(base.values.get(fp.target, fp.initial), *fp.bounds)))
                  for fp in base_free]
-    n = base.n_residuals
-    logn = math.log(max(n, 2))
-    base_bic = base.chi2 + len(base_free) * logn
+    logn = math.log(max(base.n_residuals, 2))
     pts = meas.illuminance.points_mm if meas.illuminance is not None else np.zeros((0, 3))
-    structure_before = moran_i(pts, base.residual_percent) if len(pts) else float("nan")
+    n_tile = int(np.isfinite(base.spectral_residual_percent).sum()) if base.spectral_residual_percent is not None else 0
+    b = _Base(meas=meas, effects=effects, free=base_free, noise=noise, cache=cache, fit=base,
+              bic=base.chi2 + len(base_free) * logn, logn=logn, pts=pts, parts=_chi2_parts(base, noise),
+              channel_sizes=(base_problem.n_lux + (1 if n_tile else 0), n_tile),
+              ctest=dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
+                         level_test=bool(meas.known_output_groups)),
+              known_all=bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ()))
+    return b, joint, held
 
-    registry = available_effects()
+
+def _candidate_items(ir, lighting: str, effects: dict, candidates) -> tuple[list[str], dict[str, str]]:
+    """What to refit with, one by one: every registered effect the booth does not enable (and
+    that applies to it), then the hypotheses of hardware it does not declare; and the effects
+    skipped, with why."""
+    from lbscene.engine.light.effects.registry import available_effects
+
     todo, skipped = [], {}
-    for eid, cls in registry.items():
+    for eid, cls in available_effects().items():
         if eid in effects or (candidates is not None and eid not in candidates):
             continue
         why = cls.applicable(ir, lighting) if hasattr(cls, "applicable") else None
@@ -604,102 +641,118 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             continue
         skipped.pop(H.effect, None)
         todo.append(HYPOTHESIS_PREFIX + H.id)
-    ctest = dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
-                 level_test=bool(meas.known_output_groups))
-    known_all = bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ())
-    ir_caches: dict = {}
-    base_parts = _chi2_parts(base, noise)
-    n_tile = int(np.isfinite(base.spectral_residual_percent).sum()) if base.spectral_residual_percent is not None else 0
-    channel_sizes = (base_problem.n_lux + (1 if n_tile else 0), n_tile)
+    return todo, skipped
 
-    def refit(items: tuple[str, ...]) -> Suspect:
-        cur_ir, new_eff, free = ir, effects, base_free
-        post, hw = [], []
-        n_params: dict[str, int] = {}
-        for it in items:
-            before = len(free)
-            if it.startswith(HYPOTHESIS_PREFIX):
-                H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
-                hw.append(H)
-                if H.channel == "spectral":
-                    post.append((it, H))
-                    continue
-                cur_ir, add_eff, add_free = H.augment(cur_ir, lighting, meas.known_output_groups)
-                new_eff = {**new_eff, **add_eff}
-                names = {fp.target for fp in free}
-                free = list(free) + [fp for fp in add_free if fp.target not in names]
-            else:
-                new_eff, free = candidate_config(cur_ir, lighting, new_eff, it, free,
-                                                 meas.known_output_groups)
-            n_params[it] = len(free) - before
-        if cur_ir is ir:
-            m, c = meas, cache
+
+def _configure(b: _Base, items: tuple[str, ...]):
+    """The booth, effects and free parameters of a refit with ``items``: ``(ir, effects, free,
+    spectral hypotheses fitted afterwards, hypotheses, free parameters added per item)``."""
+    cur_ir, new_eff, free = b.ir, b.effects, b.free
+    post, hw = [], []
+    n_params: dict[str, int] = {}
+    for it in items:
+        before = len(free)
+        if it.startswith(HYPOTHESIS_PREFIX):
+            H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
+            hw.append(H)
+            if H.channel == "spectral":
+                post.append((it, H))
+                continue
+            cur_ir, add_eff, add_free = H.augment(cur_ir, b.lighting, b.meas.known_output_groups)
+            new_eff = {**new_eff, **add_eff}
+            names = {fp.target for fp in free}
+            free = list(free) + [fp for fp in add_free if fp.target not in names]
         else:
-            m = replace(meas, ir=cur_ir)
-            key = tuple(h.id for h in hw if h.channel != "spectral")
-            if key not in ir_caches:
-                # content-keyed geometry (pair geometry of emitter points and receivers, occlusion
-                # fractions of a rectangle) is the same whatever booth it came from: shared
-                ir_caches[key] = {k: cache.setdefault(k, {}) for k in SHARED_GEOMETRY_STORES}
-            c = ir_caches[key]
+            new_eff, free = candidate_config(cur_ir, b.lighting, new_eff, it, free,
+                                             b.meas.known_output_groups)
+        n_params[it] = len(free) - before
+    return cur_ir, new_eff, free, post, hw, n_params
+
+
+def _measurements_for(b: _Base, cur_ir, hw):
+    """The measurements and the cache a refit on booth ``cur_ir`` uses."""
+    if cur_ir is b.ir:
+        return b.meas, b.cache
+    key = tuple(h.id for h in hw if h.channel != "spectral")
+    if key not in b.ir_caches:
+        # content-keyed geometry (pair geometry of emitter points and receivers, occlusion
+        # fractions of a rectangle) is the same whatever booth it came from: shared
+        b.ir_caches[key] = {k: b.cache.setdefault(k, {}) for k in SHARED_GEOMETRY_STORES}
+    return replace(b.meas, ir=cur_ir), b.ir_caches[key]
+
+
+def _shown_params(items, eids, hw, fit: FitResult, free) -> tuple[dict, dict]:
+    """The fitted parameters of a refit: ``(shown in the report, by effect)``."""
+    by_effect = {}
+    for it, eid in zip(items, eids):
+        if it.startswith(HYPOTHESIS_PREFIX):
+            by_effect[eid] = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]].effect_entry(fit)
+        else:
+            by_effect[eid] = {fp.name: fit.values[fp.target] for fp in free
+                              if fp.scope == "effect" and fp.ident == eid}
+    shown = {}
+    for it, eid in zip(items, eids):
+        if it.startswith(HYPOTHESIS_PREFIX):
+            shown.update({t.split(".", 1)[1]: v for t, v in fit.values.items()
+                          if t.startswith(f"effect.{eid}.") or t.startswith("hypothesis.")})
+        else:
+            shown.update({f"{eid}.{k_}": v for k_, v in by_effect[eid].items()})
+    if len(items) == 1 and not hw:
+        shown = by_effect[eids[0]]
+    return shown, by_effect
+
+
+def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
+    """Refit the booth with ``items`` (effect ids, ``hypothesis:<id>``) added, scored against the
+    base fit (None when a spectral hypothesis finds nothing to fit)."""
+    cur_ir, new_eff, free, post, hw, n_params = _configure(b, items)
+    m, c = _measurements_for(b, cur_ir, hw)
+    noise = b.noise
+    prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
+                      tolerance=SCORING_TOLERANCE)
+    starts = [st for H in hw for st in H.starts()]
+    if starts:
+        # hardware whose parameters have no gradient where the guess puts them (an opening
+        # larger than every path): start from the best of a coarse grid
+        def chi2_at(st):
+            x = np.array([st.get(prob.free[i].target, prob.free[i].initial) for i in prob.nl])
+            r = prob.residuals(x)
+            return float(r @ r)
+        best = min(starts, key=chi2_at)
+        free = [replace(fp, initial=float(best.get(fp.target, fp.initial))) for fp in free]
         prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                           tolerance=SCORING_TOLERANCE)
-        starts = [st for H in hw for st in H.starts()]
-        if starts:
-            # hardware whose parameters have no gradient where the guess puts them (an opening
-            # larger than every path): start from the best of a coarse grid
-            def chi2_at(st):
-                x = np.array([st.get(prob.free[i].target, prob.free[i].initial) for i in prob.nl])
-                r = prob.residuals(x)
-                return float(r @ r)
-            best = min(starts, key=chi2_at)
-            free = [replace(fp, initial=float(best.get(fp.target, fp.initial))) for fp in free]
-            prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
-                              tolerance=SCORING_TOLERANCE)
-        fit = prob.solve()
-        if cur_ir is not ir:
-            fit.ir = cur_ir          # the booth this explanation predicts with (plan)
-        k = len(free)
-        for it, H in post:
-            f2 = H.fit_on(prob, fit, known_all)
-            if f2 is None:
-                return None
-            n_params[it] = sum(1 for fp in f2.free if not fp.linear)
-            k += n_params[it]
-            fit = f2
-        bic = fit.chi2 + k * logn
-        eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
-                     else i for i in items)
-        by_effect = {}
-        for it, eid in zip(items, eids):
-            if it.startswith(HYPOTHESIS_PREFIX):
-                by_effect[eid] = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]].effect_entry(fit)
-            else:
-                by_effect[eid] = {fp.name: fit.values[fp.target] for fp in free
-                                  if fp.scope == "effect" and fp.ident == eid}
-        shown = {}
-        for it, eid in zip(items, eids):
-            if it.startswith(HYPOTHESIS_PREFIX):
-                shown.update({t.split(".", 1)[1]: v for t, v in fit.values.items()
-                              if t.startswith(f"effect.{eid}.") or t.startswith("hypothesis.")})
-            else:
-                shown.update({f"{eid}.{k_}": v for k_, v in by_effect[eid].items()})
-        if len(items) == 1 and not hw:
-            shown = by_effect[eids[0]]
-        parts = _chi2_parts(fit, noise)
-        gain = (base_parts[0] - parts[0], base_parts[1] - parts[1])
-        why_not = _channel_check(items, gain, n_params, channel_sizes)
-        return Suspect(
-            effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=base_bic - bic, chi2=fit.chi2,
-            n_params=k - len(base_free), explains=consistent_with_noise(fit, **ctest),
-            structure_after=moran_i(pts, fit.residual_percent) if len(pts) else float("nan"),
-            params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
-            params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
-            hardware={H.id: H.hardware_yaml(cur_ir, fit) for H in hw})
+    fit = prob.solve()
+    if cur_ir is not b.ir:
+        fit.ir = cur_ir          # the booth this explanation predicts with (plan)
+    k = len(free)
+    for it, H in post:
+        f2 = H.fit_on(prob, fit, b.known_all)
+        if f2 is None:
+            return None
+        n_params[it] = sum(1 for fp in f2.free if not fp.linear)
+        k += n_params[it]
+        fit = f2
+    bic = fit.chi2 + k * b.logn
+    eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
+                 else i for i in items)
+    shown, by_effect = _shown_params(items, eids, hw, fit, free)
+    parts = _chi2_parts(fit, noise)
+    gain = (b.parts[0] - parts[0], b.parts[1] - parts[1])
+    why_not = _channel_check(items, gain, n_params, b.channel_sizes)
+    return Suspect(
+        effect="+".join(eids), rmse_percent_after=fit.rmse_percent, score=b.bic - bic, chi2=fit.chi2,
+        n_params=k - len(b.free), explains=consistent_with_noise(fit, **b.ctest),
+        structure_after=moran_i(b.pts, fit.residual_percent) if len(b.pts) else float("nan"),
+        params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
+        params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
+        hardware={H.id: H.hardware_yaml(cur_ir, fit) for H in hw})
 
+
+def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> list[Suspect]:
+    """Every candidate on its own, best first."""
     # hardware the file does not declare is hypothesised only when the booth as declared leaves
     # something to explain: its residual above the noise, or a catalog effect that helps
-    consistent = consistent_with_noise(base, **ctest)
     suspects = []
     for k, item in enumerate(todo):
         if item.startswith(HYPOTHESIS_PREFIX) and consistent and not any(
@@ -707,43 +760,63 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
             continue
         if progress:
             progress(k, len(todo), item)
-        s_ = refit((item,))
+        s_ = _refit(b, (item,))
         if s_ is not None:
             suspects.append(s_)
     suspects.sort(key=lambda s: -s.score)
-    pairs: list[Suspect] = []
+    return suspects
+
+
+def _pair_refits(b: _Base, suspects: list[Suspect], consistent: bool, progress, done: int) -> list[Suspect]:
+    """Two candidates together, best first, when no single one reaches the noise (and the base
+    does not either, or something helps): the best few suspects, and the best of each channel."""
     eligible = [x for x in suspects if not x.not_eligible]
     helpful = [x for x in eligible if x.score > SIGNIFICANT]
-    if not any(x.explains for x in helpful) and not (consistent and not helpful):
-        # no single effect reaches the noise: two together might (search the best few suspects)
-        top = [x.items[0] for x in (helpful or eligible)[:PAIR_CANDIDATES]]
-        # and the candidate that explains most of each channel on its own, whatever its total
-        # score: a filter with an unexplained geometry beside it worsens the readings' level
-        for ch, i in (("spatial", 0), ("spectral", 1)):
-            own = [x for x in suspects if _channel(x.items[0]) == ch and x.channel_gain[i] > SIGNIFICANT]
-            if own:
-                best_ch = max(own, key=lambda x: x.channel_gain[i]).items[0]
-                if best_ch not in top:
-                    top.append(best_ch)
-        combos = list(combinations(top, 2))
-        for k, (a, b) in enumerate(combos):
-            if progress:
-                progress(len(todo) + k, len(todo) + len(combos), f"{a}+{b}")
-            p_ = refit((a, b))
-            if p_ is not None:
-                pairs.append(p_)
-        pairs.sort(key=lambda x: -x.score)
+    if any(x.explains for x in helpful) or (consistent and not helpful):
+        return []
+    # no single effect reaches the noise: two together might (search the best few suspects)
+    top = [x.items[0] for x in (helpful or eligible)[:PAIR_CANDIDATES]]
+    # and the candidate that explains most of each channel on its own, whatever its total
+    # score: a filter with an unexplained geometry beside it worsens the readings' level
+    for ch, i in (("spatial", 0), ("spectral", 1)):
+        own = [x for x in suspects if _channel(x.items[0]) == ch and x.channel_gain[i] > SIGNIFICANT]
+        if own:
+            best_ch = max(own, key=lambda x: x.channel_gain[i]).items[0]
+            if best_ch not in top:
+                top.append(best_ch)
+    combos = list(combinations(top, 2))
+    pairs: list[Suspect] = []
+    for k, (a, c) in enumerate(combos):
+        if progress:
+            progress(done + k, done + len(combos), f"{a}+{c}")
+        p_ = _refit(b, (a, c))
+        if p_ is not None:
+            pairs.append(p_)
+    pairs.sort(key=lambda x: -x.score)
+    return pairs
+
+
+def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = None,
+             progress=None, cache: dict | None = None) -> Diagnosis:
+    """Refit with each missing effect and rank the suspects (see the module docstring)."""
+    cache = base_problem.cache if cache is None else cache
+    b, joint, held = _fit_base(meas, base_problem, cache)
+    structure_before = moran_i(b.pts, b.fit.residual_percent) if len(b.pts) else float("nan")
+    todo, skipped = _candidate_items(b.ir, b.lighting, b.effects, candidates)
+    consistent = consistent_with_noise(b.fit, **b.ctest)
+    suspects = _single_refits(b, todo, consistent, progress)
+    pairs = _pair_refits(b, suspects, consistent, progress, len(todo))
     if progress:
         progress(1, 1, "")
 
-    d = Diagnosis(Verdict("none"), base, suspects, skipped, noise, structure_before=structure_before,
+    d = Diagnosis(Verdict("none"), b.fit, suspects, skipped, b.noise, structure_before=structure_before,
                   refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
     d.consistent = consistent
-    d.where = _where(meas, base)
+    d.where = _where(meas, b.fit)
     d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects if not x.not_eligible],
                         [(x.effects, x.score, x.explains) for x in pairs if not x.not_eligible])
-    d.confidence = _confidence(d, base_bic, noise)
-    _explain(d, meas, booth_effects, noise)
+    d.confidence = _confidence(d, b.bic, b.noise)
+    _explain(d, meas, base_problem.effects, b.noise)
     return d
 
 

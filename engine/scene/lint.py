@@ -27,14 +27,13 @@ from collections import Counter
 
 import numpy as np
 
+from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError, Severity
+from lbscene.engine.files.load import LoadedDocument
+from lbscene.engine.light.geometry import rotation_matrix
+from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 from lbscene.schemas.booth import Booth
 
-from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError, Severity
-from lbscene.engine.light.geometry import rotation_matrix
-from lbscene.engine.files.load import LoadedDocument
-
 from .effect_params import validate_effects
-from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 
 __all__ = ["lint_booth", "illuminance_rules", "needs_illuminance_rules", "spectrum_coverage",
            "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
@@ -71,10 +70,9 @@ def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
         import csv
         import io
 
+        from lbscene.engine.files.load import display_path
         from lbscene.engine.files.yamlio import read_text_bounded
         from lbscene.engine.spectra.evaluate import MAX_CSV_BYTES
-
-        from lbscene.engine.files.load import display_path
 
         text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), MAX_CSV_BYTES)
         rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
@@ -145,25 +143,19 @@ def _lamp_clearance(doc: LoadedDocument) -> list[Diagnostic]:
     return out
 
 
-def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
-    """The semantic diagnostics of a schema-valid booth document that need no compiled IR.
+def _adder(doc: LoadedDocument, diags: list[Diagnostic]):
+    """``E(code, message, *path, key=False, **fields)``: append to ``diags`` a diagnostic located
+    at ``path`` in the document (``key=True``: at the key itself)."""
+    def add(code, message, *path, key=False, **fields):
+        diags.append(Diagnostic(code, message, doc.locate(*path, key=key), **fields))
+    return add
 
-    Every rule of the table above but LB310: the viewing-standard warnings need the
-    compiled booth (:func:`illuminance_rules`; ``validate-config`` runs them once these
-    rules find no error).
-    """
-    from lbscene.engine.spectra.evaluate import evaluate_spectrum
 
+def _duplicate_ids(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB304: two lamps, occluders, geometry files or geometries with one id."""
     booth: Booth = doc.model
     diags: list[Diagnostic] = []
-    E = lambda code, msg, *path, key=False, **kw: diags.append(  # noqa: E731
-        Diagnostic(code, msg, doc.locate(*path, key=key), **kw))
-
-    # ---- effects (unknown ids, parameters)
-    _, eff_diags = validate_effects(doc)
-    diags.extend(eff_diags)
-
-    # ---- duplicate ids
+    E = _adder(doc, diags)
     for coll in ("lamps", "occluders", "geometry_files"):
         ids = [item.id for item in getattr(booth, coll)]
         for dup, n in Counter(ids).items():
@@ -176,8 +168,16 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
         if n > 1:
             idx = [i for i, x in enumerate(names) if x == dup][1]
             E("LB304", f"geometry '{dup}' listed twice", "geometries", idx, "name")
+    return diags
 
-    # ---- references
+
+def _references(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB202 (LB104): references to lamps, filters, reflectors and materials the booth does
+    not define; an IES file that cannot be read (located at its line); an aperture plate
+    without an opening."""
+    booth: Booth = doc.model
+    diags: list[Diagnostic] = []
+    E = _adder(doc, diags)
     lamp_ids = {lp.id for lp in booth.lamps}
     mats = set(booth.materials)
     for i, lp in enumerate(booth.lamps):
@@ -191,12 +191,11 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     for i, lp in enumerate(booth.lamps):
         # IES photometry is read here too, so validate-config reports a bad file at its line
         if lp.profile.type == "ies":
-            from lbscene.engine.files.diagnostics import LbsceneUserError as _UserError
             from lbscene.engine.spectra.profiles import read_ies
 
             try:
                 read_ies(doc.resolve(lp.profile.path), lp.profile.path)
-            except _UserError as exc:
+            except LbsceneUserError as exc:
                 diags.extend(exc.diagnostics)
     for role, mat in booth.surfaces.model_dump().items():
         if mat is not None and mat not in mats:
@@ -227,7 +226,16 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
                 E("LB202", f"lighting '{name}' dims lamp '{lid}' that it does not switch on",
                   "lighting", name, "dimming", lid, key=True, value=repr(lid),
                   expected=f"one of {list(cfg.lamps)}")
-    # effect parameters that name booth things
+    return diags
+
+
+def _effect_references(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB307: effect parameters that name lamps, occluders or filters the booth lacks, and
+    effects enabled without the hardware they model."""
+    booth: Booth = doc.model
+    diags: list[Diagnostic] = []
+    E = _adder(doc, diags)
+    lamp_ids = {lp.id for lp in booth.lamps}
     for eid, params in booth.effects.items():
         if not isinstance(params, dict):
             continue
@@ -255,8 +263,14 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     if "spectral_filter" in booth.effects and not booth.filters:
         E("LB307", "effect 'spectral_filter' is enabled but the booth has no filters:", "effects",
           "spectral_filter", key=True, expected="a filters: section")
+    return diags
 
-    # ---- placement
+
+def _placement(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB300, LB308, LB306: lamps, the turned platform and the sample inside the interior."""
+    booth: Booth = doc.model
+    diags: list[Diagnostic] = []
+    E = _adder(doc, diags)
     for i, lp in enumerate(booth.lamps):
         c = np.asarray(lp.position_mm, float)
         ax = np.asarray(lp.axis, float)
@@ -289,11 +303,17 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     if not _inside(booth.sample_position_mm, booth):
         E("LB306", "sample position is outside the booth", "sample_position_mm",
           value=str(list(booth.sample_position_mm)), expected="a point inside the interior")
-    diags.extend(_lamp_clearance(doc))
+    return diags
 
-    # ---- bounds on the work (before anything is computed)
+
+def _work_bounds(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB510: more lamps or point sources than the work bounds allow (before anything is
+    computed)."""
     from lbscene.engine.files.limits import LIMITS, limit_value
 
+    booth: Booth = doc.model
+    diags: list[Diagnostic] = []
+    E = _adder(doc, diags)
     for name, count, path in (("lamps", len(booth.lamps), ("lamps",)),
                               ("source_points", sum(lp.point_sources for lp in booth.lamps), ("lamps",))):
         n = limit_value(name)
@@ -302,8 +322,17 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
             E("LB510", f"{lim.counts}: {count} exceeds the limit of {n}", *path, key=True, value=str(count),
               expected=f"at most {n} ({lim.cost})",
               hint=f"raise the limit with the environment variable {lim.env}=N if the machine has the memory")
+    return diags
 
-    # ---- spectra: coverage and ranges
+
+def _spectra(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB301, LB302: every spectrum covers the bands; reflectances and transmittances in
+    [0, 1] (and every spectrum file readable)."""
+    from lbscene.engine.spectra.evaluate import evaluate_spectrum
+
+    booth: Booth = doc.model
+    diags: list[Diagnostic] = []
+    E = _adder(doc, diags)
     lo_need, hi_need = DEFAULT_GRID.edges_nm[0], DEFAULT_GRID.edges_nm[-1]
     band = (REFERENCE_WAVELENGTHS_NM >= lo_need) & (REFERENCE_WAVELENGTHS_NM <= hi_need)
 
@@ -338,13 +367,35 @@ def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
                        "diffuser transmittance")
     for i, lp in enumerate(booth.lamps):
         check_spectrum(lp.spd, "emission", ("lamps", i, "spd"), f"SPD of lamp '{lp.id}'")
+    return diags
 
-    # ---- provenance (info)
-    if booth.provenance.status == "estimate":
-        fields = ", ".join(booth.provenance.estimated_fields) or "all values"
-        diags.append(Diagnostic("LB311", f"booth values are estimates ({fields}): replace them with "
-                                "measurements where you have them", doc.locate("provenance"),
-                                severity=Severity.INFO))
+
+def _provenance(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB311 (info): values marked as estimates."""
+    booth: Booth = doc.model
+    if booth.provenance.status != "estimate":
+        return []
+    fields = ", ".join(booth.provenance.estimated_fields) or "all values"
+    return [Diagnostic("LB311", f"booth values are estimates ({fields}): replace them with "
+                       "measurements where you have them", doc.locate("provenance"),
+                       severity=Severity.INFO)]
+
+
+#: The rules of :func:`lint_booth`, in the order their diagnostics are listed.
+RULES = (_duplicate_ids, _references, _effect_references, _placement, _lamp_clearance, _work_bounds,
+         _spectra, _provenance)
+
+
+def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
+    """The semantic diagnostics of a schema-valid booth document that need no compiled IR.
+
+    Every rule of the table above but LB310: the viewing-standard warnings need the
+    compiled booth (:func:`illuminance_rules`; ``validate-config`` runs them once these
+    rules find no error).  All rules run (:data:`RULES`), so every problem is reported at once.
+    """
+    _, diags = validate_effects(doc)        # unknown effect ids, bad effect parameters
+    for rule in RULES:
+        diags.extend(rule(doc))
     return diags
 
 
