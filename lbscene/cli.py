@@ -83,6 +83,18 @@ def _json_errors(diags, code: int = 2) -> None:
                      indent=2, ensure_ascii=False))
 
 
+def _tolerant_streams() -> None:
+    """A console that cannot encode a character (``PYTHONIOENCODING=ascii``, a C locale) prints
+    it as a backslash escape instead of failing the command."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None and getattr(stream, "errors", None) == "strict":
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):
+                pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning user errors into exit code 2.
 
@@ -92,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json = _wants_json(argv)
+    _tolerant_streams()
     from lbscene.engine.files.outputs import INPUTS
 
     INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)

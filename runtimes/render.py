@@ -371,11 +371,17 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
 
     out_png = png or (base / cfg.output.png)
     out_xyz = xyz or ((base / cfg.output.xyz) if cfg.output.xyz else None)
+    if png is not None and xyz is None and cfg.output.xyz:
+        # -o redirects every output of the config: the float XYZ goes beside the PNG, never
+        # into the config's own folder
+        p_png = Path(png)
+        out_xyz = p_png.with_name(p_png.stem + ".xyz" + Path(cfg.output.xyz).suffix.lower())
     if out_xyz is not None and Path(out_xyz).suffix.lower() not in (".npy", ".exr"):
         raise _err("LB104", f"XYZ output {str(out_xyz)!r} must end in .npy or .exr",
                    None if xyz else doc.locate("output", "xyz"), value=str(out_xyz),
                    expected="a .npy or .exr file name")
-    _check_render_outputs(doc, base, out_png, png is not None, out_xyz, xyz is not None,
+    xyz_from_cli = xyz is not None or (png is not None and bool(cfg.output.xyz))
+    _check_render_outputs(doc, base, out_png, png is not None, out_xyz, xyz_from_cli,
                           views if all_geometries else None, allowed_dirs)
     cam = cfg.camera
     camera = CameraSpec(position_mm=cam.position_mm if cam.type == "free" else None,

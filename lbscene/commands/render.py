@@ -53,7 +53,7 @@ def register(app: typer.Typer) -> None:
     @app.command("render")
     def render(
         config: Path = typer.Argument(..., help="Render configuration (kind: render_config)."),
-        out: Optional[Path] = typer.Option(None, "--out", "-o", help="PNG to write (default: the config's output.png)."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o", help="PNG to write (default: the config's output.png); the config's float XYZ then goes beside it as NAME.xyz.exr or .npy."),
         geometry: Optional[str] = typer.Option(None, "--geometry", "-g", help="Viewing geometry, e.g. 45as15."),
         size: Optional[str] = typer.Option(None, "--size", help="WIDTHxHEIGHT in pixels (16..8192 each)."),
         all_geometries: bool = typer.Option(
