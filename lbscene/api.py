@@ -32,6 +32,7 @@ __all__ = [
     "compare",
     "plan",
     "render_from_config",
+    "conformance",
     "LbsceneUserError",
     "Diagnostic",
 ]
@@ -127,6 +128,73 @@ def render_from_config(config: Path | str, **options):
     from .runtimes.render import render_from_config as _render
 
     return _render(config, **options)
+
+
+def conformance(booth: Path | str, *, lightings: Iterable[str] | None = None,
+                measurements: Path | str | None = None, report: Path | str | None = None,
+                grid: tuple[int, int] = (13, 9), allowed_dirs: Iterable[Path] = ()):
+    """Judge each lighting of a booth against the viewing standard it names.
+
+    The forward model with the booth's effects gives the light at the sample and over the
+    viewing area; colour-science gives its colorimetry; the checks are those of the
+    lighting's ``standard:`` (ISO 3664:2009 P1/P2 in full, the illuminance range of
+    ASTM D1729 and ISO 3668).
+
+    Parameters
+    ----------
+    booth : path or str
+        Booth folder, ``booth.yaml`` or a shipped booth's name.
+    lightings : iterable of str, optional
+        Lighting configurations to judge (default: all).
+    measurements : path or str, optional
+        A measurement set of the booth; its lighting is judged from the data too.
+    report : path or str, optional
+        Also write the self-contained HTML report there (the output policy of
+        :mod:`lbscene.engine.outputs` applies: an existing file is replaced only if lbscene
+        wrote it).
+    grid : (int, int)
+        Points along x and y of the viewing-area grid.
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+
+    Returns
+    -------
+    lbscene.engine.conformance.evaluate.ConformanceResult
+        ``.lightings`` (each with ``.model``, ``.measured``, ``.checks``, ``.verdict``) and
+        ``.to_json()``.
+
+    Raises
+    ------
+    LbsceneUserError
+        A bad booth, measurement set, lighting name (``LB202``) or grid (``LB500``), or an
+        output the policy refuses (``LB610``–``LB612``).
+    TypeError
+        ``lightings`` given as one string, ``grid`` not a pair of ints.
+
+    References
+    ----------
+    ISO 3664:2009; CIE 13.3-1995; CIE 224:2017; ANSI/IES TM-30-18; CIE 51.2-1999.
+
+    Examples
+    --------
+    >>> res = lbscene.conformance("iso3664-p1-d50", lightings=["P1"])     # doctest: +SKIP
+    >>> [(c.id, c.verdict) for c in res.lightings[0].checks][:2]            # doctest: +SKIP
+    [('illuminance', 'pass'), ('uniformity', 'fail')]
+    """
+    from .engine.conformance import run_conformance
+    from .engine.outputs import check_outputs
+
+    if isinstance(lightings, (str, bytes)):
+        raise TypeError("lightings must be an iterable of lighting names, not one string")
+    if report is not None:
+        check_outputs([(Path(report), "report")], inputs=[Path(booth)] + ([Path(measurements)] if measurements else []))
+    res = run_conformance(booth, lightings=None if lightings is None else list(lightings),
+                          measurements=measurements, grid=grid, allowed_dirs=tuple(allowed_dirs))
+    if report is not None:
+        from .engine.conformance.report import write_conformance_report
+
+        write_conformance_report(res, report)
+    return res
 
 
 def __getattr__(name: str):
