@@ -149,9 +149,9 @@ def colorimetry_1nm(values_1nm, wavelengths_nm=None, *, uv_reached: bool = True)
 
     Notes
     -----
-    CCT and Duv follow Ohno (2013) in CIE 1960 uv; CIE 13.3 and CIE 224 define their
-    indices only near the Planckian locus (|Duv| ≤ 0.05 here): further away the colour
-    rendering fields are ``None`` with a note.
+    CCT and Duv follow Ohno (2013) in CIE 1960 uv.  CCT, and with it the CIE 13.3 and CIE 224
+    indices (whose reference illuminant is chosen by CCT), are defined only near the Planckian
+    locus (|Duv| ≤ 0.05, 1000–100 000 K here): further away those fields are ``None`` with a note.
     """
     import colour
 
@@ -179,7 +179,13 @@ def colorimetry_1nm(values_1nm, wavelengths_nm=None, *, uv_reached: bool = True)
         _, uvp10 = _chromaticities(sd, _OBS_10)
         cct, duv = (float(x) for x in colour.uv_to_CCT(colour.xy_to_UCS_uv(xy), method="Ohno 2013"))
         ra = r = rf = tm_rf = tm_rg = None
-        if abs(duv) <= 0.05 and 1000.0 <= cct <= 100000.0:
+        near = abs(duv) <= 0.05 and 1000.0 <= cct <= 100000.0
+        if not near:
+            # CIE 15:2004: CCT is not meaningful this far from the Planckian locus
+            notes.append(f"chromaticity too far from the Planckian locus (Ohno 2013 gives {cct:.0f} K, Duv "
+                         f"{duv:+.4f}): CCT, Duv and the colour rendering and fidelity indices are undefined")
+            cct = duv = None
+        if near:
             spec = colour.colour_rendering_index(sd, additional_data=True)
             ra = float(spec.Q_a)
             r = tuple(float(spec.Q_as[i].Q_a) for i in range(1, 15))
@@ -189,9 +195,6 @@ def colorimetry_1nm(values_1nm, wavelengths_nm=None, *, uv_reached: bool = True)
                 tm_rf, tm_rg = float(tm.R_f), float(tm.R_g)
             except (ValueError, ZeroDivisionError, FloatingPointError) as exc:  # pragma: no cover
                 notes.append(f"CIE 2017 / TM-30-18 not computed: {exc}")
-        else:
-            notes.append(f"chromaticity too far from the Planckian locus (CCT {cct:.0f} K, Duv {duv:+.4f}): "
-                         "colour rendering and fidelity indices are undefined")
     return LightColorimetry(
         xy=(float(xy[0]), float(xy[1])), uv_prime=(float(uvp[0]), float(uvp[1])),
         uv_prime_10deg=None if uvp10 is None else (float(uvp10[0]), float(uvp10[1])),

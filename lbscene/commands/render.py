@@ -1,4 +1,4 @@
-"""``lbscene render CONFIG.yaml [-o out.png] [--geometry 45as15] [--size 1024x768] [--all-geometries]``"""
+"""``lbscene render CONFIG.yaml [-o out.png] [--lighting L] [--geometry 45as15[,45as45]] [--size 1024x768] [--all-geometries]``"""
 
 from __future__ import annotations
 

@@ -69,7 +69,8 @@ def test_no_light_and_far_from_the_locus():
     mono = np.zeros(471)
     mono[170] = 1.0                                         # 530 nm: a green line
     c = colorimetry_1nm(mono)
-    assert c.xy is not None and c.cri_ra is None and "Planckian" in c.notes[0]
+    assert c.xy is not None and c.cri_ra is None and c.cct_K is None and c.duv is None
+    assert "Planckian" in c.notes[0]
 
 
 # --------------------------------------------------------------------------- booths
