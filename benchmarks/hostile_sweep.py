@@ -142,6 +142,8 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
             out.append((f"plan --out {name}", ["plan", meas, "--out", p], {}))
             out.append((f"history --plot {name}", ["history", meas, "--plot", p], {}))
             out.append((f"accuracy --plot {name}", ["accuracy", "--booth", b, "--no-cie", "--plot", p], {}))
+            out.append((f"conformance --report {name}", ["conformance", b, "--report", p], {}))
+            out.append((f"export-mitsuba --out {name}", ["export-mitsuba", b, "--out", p], {}))
         out.append((f"render -o {name}", ["render", cfg, "--no-input", "-o", p], {}))
     for name, p in odd_dirs.items():
         out.append((f"export-web --out {name}", ["export-web", cfg, "--out", p], {}))

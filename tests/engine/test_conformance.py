@@ -139,6 +139,8 @@ def test_a_booth_that_meets_iso_3664_p1(tmp_path):
     assert ch["surround"].value == pytest.approx(0.30, abs=1e-3)         # a flat 30 % grey: Y = 0.30
     for k in ("metamerism_visible", "metamerism_uv", "uv_content"):
         assert ch[k].verdict == "not_applicable" and ch[k].note
+    # the light is D50 (colour-science's table covers 300-830 nm): its UV content is D50's
+    assert ch["uv_content"].value == pytest.approx(1.0, abs=2e-3) and ch["uv_content"].unit == "× D50"
 
 
 def test_a_booth_that_fails_iso_3664_p1(tmp_path):
