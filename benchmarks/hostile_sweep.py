@@ -223,11 +223,11 @@ def _hostile_workspace(tmp: Path, ws: dict) -> None:
     ws["session_default"].write_text(ses.read_text().replace("repeats: 2\n", ""))
     head = "session,observer,repeat,order,lighting,geometry,sample,display,score,response_time_ms\n"
     ws["results_nan"] = vis / "nan.csv"
-    ws["results_nan"].write_text(head + "tube-test,O1,1,1,D65,45as0,"Blue metallic (synthetic, gonio-apparent)",sRGB,nan,1500\n")
+    ws["results_nan"].write_text(head + "tube-test,O1,1,1,D65,45as0,\"Blue metallic (synthetic, gonio-apparent)\",sRGB,nan,1500\n")
     ws["results_text"] = vis / "text.csv"
-    ws["results_text"].write_text(head + "tube-test,O1,one,1,D65,45as0,"Blue metallic (synthetic, gonio-apparent)",sRGB,four,1500\n")
+    ws["results_text"].write_text(head + "tube-test,O1,one,1,D65,45as0,\"Blue metallic (synthetic, gonio-apparent)\",sRGB,four,1500\n")
     ws["results_latin1"] = vis / "latin1.csv"
-    ws["results_latin1"].write_bytes((head + "tube-test,Ö1,1,1,D65,45as0,"Blue metallic (synthetic, gonio-apparent)",sRGB,4,1500\n").encode("latin-1"))
+    ws["results_latin1"].write_bytes((head + "tube-test,Ö1,1,1,D65,45as0,\"Blue metallic (synthetic, gonio-apparent)\",sRGB,4,1500\n").encode("latin-1"))
     huge = vis / "huge.csv"
     with open(huge, "wb") as f:
         f.write(head.encode())
@@ -291,6 +291,8 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
             out.append((f"plan --out {name}", ["plan", meas, "--out", p], {}))
             out.append((f"history --plot {name}", ["history", meas, "--plot", p], {}))
             out.append((f"accuracy --plot {name}", ["accuracy", "--booth", b, "--no-cie", "--plot", p], {}))
+            out.append((f"conformance --report {name}", ["conformance", b, "--report", p], {}))
+            out.append((f"export-mitsuba --out {name}", ["export-mitsuba", b, "--out", p], {}))
         out.append((f"render -o {name}", ["render", cfg, "--no-input", "-o", p], {}))
     for name, p in odd_dirs.items():
         out.append((f"export-web --out {name}", ["export-web", cfg, "--out", p], {}))

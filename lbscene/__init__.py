@@ -7,7 +7,8 @@ Subpackages map onto the repository's top-level folders:
 
 The stable Python API (:mod:`lbscene.api`) is exported here: ``load_booth``,
 ``compile_booth``, ``ForwardModel``, ``validate``, ``build``, ``compare``, ``plan``,
-``render_from_config``, and the error type ``LbsceneUserError``.
+``render_from_config``, ``write_report``, ``export_web``, ``bake``, ``conformance``,
+``export_mitsuba``, and the error type ``LbsceneUserError``.
 """
 
 from lbscene._version import __version__

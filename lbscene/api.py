@@ -32,6 +32,11 @@ __all__ = [
     "compare",
     "plan",
     "render_from_config",
+    "write_report",
+    "export_web",
+    "bake",
+    "conformance",
+    "export_mitsuba",
     "LbsceneUserError",
     "Diagnostic",
 ]
@@ -127,6 +132,301 @@ def render_from_config(config: Path | str, **options):
     from .runtimes.render import render_from_config as _render
 
     return _render(config, **options)
+
+
+def _path_arg(value, name: str) -> Path:
+    """``value`` as a Path; ``TypeError`` naming the argument for anything but a str or a path."""
+    import os
+
+    if isinstance(value, (str, os.PathLike)) and not isinstance(value, bytes):
+        return Path(value)
+    raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
+
+
+def write_report(result, out: Path | str) -> Path:
+    """Write the compare report of ``result``: one self-contained HTML file.
+
+    Measured, predicted and residual maps, fitted parameters, the diagnosis (suspects, verdict,
+    YAML to add), the planned readings, the white-tile spectrum and the history, with every
+    plot embedded as a PNG data URI (no scripts, nothing fetched) — what ``lbscene compare
+    --report`` writes.
+
+    Parameters
+    ----------
+    result : lbscene.engine.compare.CompareResult
+        What :func:`compare` returned.
+    out : path or str
+        The HTML file.  The output policy of :mod:`lbscene.engine.outputs` applies: an existing
+        file is replaced only if lbscene wrote it, never one of the run's inputs.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    TypeError
+        ``result`` is not a compare result, or ``out`` not a path.
+    LbsceneUserError
+        ``LB610``–``LB612`` for an output the policy refuses.
+
+    Examples
+    --------
+    >>> res = lbscene.compare("examples/walkthrough-spectralight-d65/measurements.yaml")  # doctest: +SKIP
+    >>> lbscene.write_report(res, "report.html")                                          # doctest: +SKIP
+    PosixPath('report.html')
+    """
+    from .engine.loop.compare import CompareResult
+    from .engine.files.outputs import check_outputs
+    from .engine.loop.report import write_report as _write
+
+    if not isinstance(result, CompareResult):
+        raise TypeError(f"result must be what lbscene.compare() returned, got {type(result).__name__}")
+    out = _path_arg(out, "out")
+    check_outputs([(out, "report")], inputs=[result.meas.path])
+    return _write(result, out)
+
+
+def export_web(source: Path | str, out: Path | str, *, lightings: Iterable[str] = (),
+               samples: Iterable[Path | str] = (), displays: Iterable[str] = (),
+               size: tuple[int, int] | None = None, session: Path | str | None = None,
+               max_mb: float = 256.0, allowed_dirs: Iterable[Path] = ()) -> dict:
+    """Export a self-contained WebGL2 viewer of a booth or a render configuration.
+
+    The viewer runs the same render graphs and GLSL files as :func:`render_from_config`
+    (HTML + JavaScript + data; nothing fetched, opens from ``file://``) — what
+    ``lbscene export-web`` writes.
+
+    Parameters
+    ----------
+    source : path or str
+        A render configuration (``kind: render_config``) or a booth folder / ``booth.yaml``.
+    out : path or str
+        The viewer's folder: new, empty, or an earlier export (replaced whole, atomically).
+    lightings : iterable of str
+        Lighting configurations to include (default: all of the booth's).
+    samples : iterable of path
+        Extra sample documents.
+    displays : iterable of str
+        Extra display documents, or ``"builtin:srgb"`` (the sRGB reference is always in).
+    size : (int, int), optional
+        Canvas width and height in pixels.
+    session : path or str, optional
+        A visual-test session (``kind: visual_session``): its cases and the test mode.
+    max_mb : float
+        Refuse exports whose data exceed this many megabytes (``LB701``).
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+
+    Returns
+    -------
+    dict
+        ``out``, ``files``, ``booth``, ``lightings``, ``views``, ``samples``, ``displays``,
+        ``data_MB``, ``data_file_MB``, ``session``, ``elapsed_s``.
+
+    Raises
+    ------
+    TypeError
+        ``lightings``/``displays`` given as one string, ``size`` not a pair of ints.
+    LbsceneUserError
+        ``LB700`` an ``out`` that is not a web export, ``LB701`` too much data, ``LB202`` an
+        unknown lighting, and the located errors of the inputs.
+    """
+    from .commands.web import run_export_web
+
+    for name, v in (("lightings", lightings), ("samples", samples), ("displays", displays)):
+        if isinstance(v, (str, bytes)) or not all(isinstance(x, (str, Path)) for x in v):
+            raise TypeError(f"{name} must be an iterable of names or paths, not {v!r}")
+    if size is not None and not (isinstance(size, (tuple, list)) and len(size) == 2
+                                 and all(isinstance(x, int) and not isinstance(x, bool) for x in size)):
+        raise TypeError(f"size must be (width, height) in pixels, got {size!r}")
+    if size is not None and not all(16 <= x <= 8192 for x in size):
+        raise LbsceneUserError.single("LB500", "size: each side must be 16..8192 pixels", "<arguments>",
+                                      value=str(size), expected="WIDTHxHEIGHT with each side 16..8192")
+    return run_export_web(_path_arg(source, "source"), _path_arg(out, "out"), lightings=list(lightings),
+                          samples=[Path(x) for x in samples], displays=[str(x) for x in displays],
+                          size=None if size is None else tuple(size),
+                          session=None if session is None else _path_arg(session, "session"),
+                          max_mb=float(max_mb), allowed_dirs=tuple(allowed_dirs))
+
+
+def bake(target: Path | str, *, lighting: str | None = None, quality: str = "preview",
+         samples: int | None = None, out: Path | str | None = None, force: bool = False,
+         allowed_dirs: Iterable[Path] = (), progress: bool = False):
+    """Bake a booth's spectral light products with Blender Cycles (``bpy``), each lighting in its
+    own process: environment maps, floor irradiance, irradiance at the measurement points.
+
+    Cached by the job's content hash (an unchanged job is not baked again unless ``force``),
+    atomic and resumable — what ``lbscene bake`` does.
+
+    Parameters
+    ----------
+    target : path or str
+        A build folder (``lbscene build``) or a booth folder / ``booth.yaml``.
+    lighting : str, optional
+        Only this lighting configuration (default: all).
+    quality : {"preview", "final"}
+        ``final`` samples the grid points until their noise is at most 1 %.
+    samples : int, optional
+        Fixed samples per pixel/texel for every product (2..65536).
+    out : path or str, optional
+        Folder of the bakes (default: ``<build dir>/bake``).
+    force : bool
+        Bake again even when cached.
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+    progress : bool
+        Show rich progress bars on stderr.
+
+    Returns
+    -------
+    list of lbscene.bakers.executor.TaskResult
+        One per lighting: ``status`` (``cached``, ``baked`` or ``failed``), ``manifest``,
+        ``error``, ``task.out_dir``.
+
+    Raises
+    ------
+    TypeError
+        ``samples`` not an int, ``lighting`` not a str.
+    LbsceneUserError
+        ``LB500`` an unknown quality, lighting or a sample count out of range, the output policy's
+        ``LB610``–``LB612``, and the located errors of the booth.
+    """
+    from .commands.bake import MAX_SAMPLES, _load_targets
+
+    if lighting is not None and not isinstance(lighting, str):
+        raise TypeError(f"lighting must be a lighting name, got {lighting!r}")
+    if samples is not None and (not isinstance(samples, int) or isinstance(samples, bool)):
+        raise TypeError(f"samples must be an int, got {samples!r}")
+    if quality not in ("preview", "final"):
+        raise LbsceneUserError.single("LB500", f"unknown quality {quality!r}", "<arguments>", value=repr(quality),
+                                      expected="'preview' or 'final'")
+    if samples is not None and not 2 <= samples <= MAX_SAMPLES:
+        raise LbsceneUserError.single("LB500", "samples out of range", "<arguments>", value=str(samples),
+                                      expected=f"2..{MAX_SAMPLES}")
+    from .bakers.executor import BakeTask, run_tasks
+    from .engine.files.outputs import check_outputs
+
+    target = _path_arg(target, "target")
+    ir, build_dir, jobs = _load_targets(target, lighting, quality, samples, tuple(allowed_dirs))
+    root = _path_arg(out, "out") if out is not None else build_dir / "bake"
+    check_outputs([], inputs=[target], dirs=[(root / name, "out" if out is not None else "bake folder")
+                                             for name, _ in jobs])
+    tasks = [BakeTask(job, root / name, label=f"{ir.booth_name} · {name}") for name, job in jobs]
+    return run_tasks(tasks, force=force, progress=progress)
+
+
+def export_mitsuba(booth: Path | str, out: Path | str, *, lighting: str | None = None,
+                   measurements: Path | str | None = None, spp: int = 16384,
+                   allowed_dirs: Iterable[Path] = ()):
+    """Write the Mitsuba 3 scene lbscene's truth provider renders: a booth, a lighting and its
+    readings, as Mitsuba XML (``.xml``, meshes as PLY beside it) or a Python dict module (``.py``).
+
+    See :mod:`lbscene.engine.conformance.mitsuba_export` for what the scene represents and what
+    it refuses.
+
+    Parameters
+    ----------
+    booth : path or str
+        Booth folder, ``booth.yaml`` or a shipped booth's name.
+    out : path or str
+        ``scene.xml`` or ``scene.py``.
+    lighting : str, optional
+        Lighting configuration (default: the measurement set's, else the booth's first).
+    measurements : path or str, optional
+        A measurement set: its readings become the scene's sensors (default: the 55-point A3 grid).
+    spp : int
+        Samples per reading written into the scene.
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+
+    Returns
+    -------
+    lbscene.engine.conformance.mitsuba_export.MitsubaExport
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB603`` (located) what Mitsuba cannot represent, ``LB604`` without mitsuba, ``LB500`` a
+        bad suffix, ``LB202`` an unknown lighting.
+    TypeError
+        ``spp`` not an int, a path argument of another type.
+    """
+    from .engine.conformance.mitsuba_export import export_mitsuba as _export
+
+    if lighting is not None and not isinstance(lighting, str):
+        raise TypeError(f"lighting must be a lighting name, got {lighting!r}")
+    return _export(_path_arg(booth, "booth"), _path_arg(out, "out"), lighting=lighting,
+                   measurements=None if measurements is None else _path_arg(measurements, "measurements"),
+                   spp=spp, allowed_dirs=tuple(allowed_dirs))
+
+
+def conformance(booth: Path | str, *, lightings: Iterable[str] | None = None,
+                measurements: Path | str | None = None, report: Path | str | None = None,
+                grid: tuple[int, int] = (13, 9), allowed_dirs: Iterable[Path] = ()):
+    """Judge each lighting of a booth against the viewing standard it names.
+
+    The forward model with the booth's effects gives the light at the sample and over the
+    viewing area; colour-science gives its colorimetry; the checks are those of the
+    lighting's ``standard:`` (ISO 3664:2009 P1/P2 in full, the illuminance range of
+    ASTM D1729 and ISO 3668).
+
+    Parameters
+    ----------
+    booth : path or str
+        Booth folder, ``booth.yaml`` or a shipped booth's name.
+    lightings : iterable of str, optional
+        Lighting configurations to judge (default: all).
+    measurements : path or str, optional
+        A measurement set of the booth; its lighting is judged from the data too.
+    report : path or str, optional
+        Also write the self-contained HTML report there (the output policy of
+        :mod:`lbscene.engine.outputs` applies: an existing file is replaced only if lbscene
+        wrote it).
+    grid : (int, int)
+        Points along x and y of the viewing-area grid.
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+
+    Returns
+    -------
+    lbscene.engine.conformance.evaluate.ConformanceResult
+        ``.lightings`` (each with ``.model``, ``.measured``, ``.checks``, ``.verdict``) and
+        ``.to_json()``.
+
+    Raises
+    ------
+    LbsceneUserError
+        A bad booth, measurement set, lighting name (``LB202``) or grid (``LB500``), or an
+        output the policy refuses (``LB610``–``LB612``).
+    TypeError
+        ``lightings`` given as one string, ``grid`` not a pair of ints.
+
+    References
+    ----------
+    ISO 3664:2009; CIE 13.3-1995; CIE 224:2017; ANSI/IES TM-30-18; CIE 51.2-1999.
+
+    Examples
+    --------
+    >>> res = lbscene.conformance("iso3664-p1-d50", lightings=["P1"])     # doctest: +SKIP
+    >>> [(c.id, c.verdict) for c in res.lightings[0].checks][:2]            # doctest: +SKIP
+    [('illuminance', 'pass'), ('uniformity', 'fail')]
+    """
+    from .engine.conformance import run_conformance
+    from .engine.files.outputs import check_outputs
+
+    if isinstance(lightings, (str, bytes)):
+        raise TypeError("lightings must be an iterable of lighting names, not one string")
+    if report is not None:
+        check_outputs([(Path(report), "report")], inputs=[Path(booth)] + ([Path(measurements)] if measurements else []))
+    res = run_conformance(booth, lightings=None if lightings is None else list(lightings),
+                          measurements=measurements, grid=grid, allowed_dirs=tuple(allowed_dirs))
+    if report is not None:
+        from .engine.conformance.report import write_conformance_report
+
+        write_conformance_report(res, report)
+    return res
 
 
 def __getattr__(name: str):

@@ -47,7 +47,7 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
 #: Command modules, in help order.  A module that is not present is skipped.
 COMMAND_MODULES = (
     "validate", "build", "compare", "plan", "history", "effects", "accuracy", "bake", "render",
-    "web", "visual_report",
+    "web", "visual_report", "conformance", "export_mitsuba",
 )
 
 for _name in COMMAND_MODULES:

@@ -41,6 +41,7 @@ __all__ = [
     "contact_sheet",
     "write_png",
     "write_xyz",
+    "geometry_list",
 ]
 
 MIN_SIZE_PX = 16
@@ -227,6 +228,8 @@ class RenderJob:
     camera: CameraSpec = field(default_factory=CameraSpec)
     notes: list[str] = field(default_factory=list)
     adaptation: str = "cat16"
+    #: several views asked for (``--all-geometries`` or a list of ``--geometry``): one contact sheet
+    contact: bool = False
 
     def renderer(self, ctx=None, device_index: int | None = None) -> Renderer:
         return Renderer(self.ir, self.graph, self.sample, self.display, bake=self.bake,
@@ -270,14 +273,28 @@ def _check_render_outputs(doc, base: Path, png: Path, png_from_cli: bool, xyz: P
                           allowed_dirs=tuple(Path(d) for d in allowed_dirs))
 
 
-def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_geometries: bool = False,
+def geometry_list(geometry) -> list[str]:
+    """Viewing geometry names from ``--geometry``: one name, a comma-separated list, or a list of
+    either (the option repeated); order kept, duplicates dropped.  ``TypeError`` for anything else."""
+    if geometry is None:
+        return []
+    items = [geometry] if isinstance(geometry, str) else geometry
+    if not isinstance(items, (list, tuple)) or not all(isinstance(g, str) for g in items):
+        raise TypeError(f"geometry must be a name, a comma-separated string or a list of names, got {geometry!r}")
+    return list(dict.fromkeys(n.strip() for g in items for n in g.split(",") if n.strip()))
+
+
+def prepare_from_config(config_path: Path, *, geometry: str | list[str] | None = None,
+                        all_geometries: bool = False,
                         size: tuple[int, int] | None = None, png: Path | None = None,
                         xyz: Path | None = None, diffuse: str | None = None,
                         bake_dirs: list[Path] | None = None, allowed_dirs=(),
-                        adaptation: str | None = None) -> RenderJob:
+                        adaptation: str | None = None, lighting: str | None = None) -> RenderJob:
     """Load and check a render configuration; everything a user can get wrong raises
     :class:`~lbscene.engine.files.diagnostics.LbsceneUserError` with a location.  Keyword arguments
-    other than ``bake_dirs`` and ``allowed_dirs`` override the configuration's fields."""
+    other than ``bake_dirs`` and ``allowed_dirs`` override the configuration's fields:
+    ``lighting`` its lighting, ``geometry`` its geometry (a name, a comma-separated list or a
+    list: several views make a contact sheet, as ``all_geometries`` does)."""
     from lbscene.engine.scene.compile import compile_booth, find_booth_file
     from lbscene.engine.files.load import display_path, load_document
     from lbscene.schemas.render_config import RenderConfig
@@ -288,6 +305,9 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
     from .graph import build_render_graph, view_names
 
     config_path = Path(config_path)
+    wanted = geometry_list(geometry)
+    if lighting is not None and not isinstance(lighting, str):
+        raise TypeError(f"lighting must be a lighting name, got {lighting!r}")
     doc = load_document(config_path, RenderConfig, allowed_dirs=allowed_dirs)
     cfg = doc.model
     base = config_path.resolve().parent
@@ -296,10 +316,12 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
         raise _err("LB200", f"booth {cfg.booth!r} does not exist", doc.locate("booth"),
                    value=str(booth_path), expected="a booth folder or booth.yaml")
     ir = compile_booth(find_booth_file(booth_path))
-    if cfg.lighting not in ir.lighting:
-        raise _err("LB202", f"booth {ir.booth_name!r} has no lighting configuration {cfg.lighting!r}",
-                   doc.locate("lighting"), value=repr(cfg.lighting), expected=f"one of {', '.join(ir.lighting)}")
-    graph = build_render_graph(ir, cfg.lighting)
+    lighting_name = lighting or cfg.lighting
+    if lighting_name not in ir.lighting:
+        raise _err("LB202", f"{'--lighting: ' if lighting else ''}booth {ir.booth_name!r} has no lighting "
+                            f"configuration {lighting_name!r}", None if lighting else doc.locate("lighting"),
+                   value=repr(lighting_name), expected=f"one of {', '.join(ir.lighting)}")
+    graph = build_render_graph(ir, lighting_name)
     names = view_names(ir)
     booth_geoms = [g.name for g in ir.geometries]
     notes: list[str] = []
@@ -310,16 +332,17 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                          + (f"one viewing geometry ({booth_geoms[0]})" if booth_geoms else "no viewing geometry")
                          + ": the contact sheet has one view")
     else:
-        want = geometry or cfg.geometry
-        if want is None:
+        wants = wanted or ([cfg.geometry] if cfg.geometry is not None else [])
+        if not wants:
             views = [names[0]]
-        elif want not in booth_geoms:
-            loc = None if geometry else doc.locate("geometry")
-            expected = f"one of {', '.join(booth_geoms)}" if booth_geoms else "no geometry (this booth has none)"
-            raise _err("LB303", f"{'--geometry: ' if geometry else ''}unknown viewing geometry {want!r} for "
-                                f"booth {ir.booth_name!r}", loc, value=repr(want), expected=expected)
         else:
-            views = [want]
+            for want in wants:
+                if want not in booth_geoms:
+                    loc = None if wanted else doc.locate("geometry")
+                    expected = f"one of {', '.join(booth_geoms)}" if booth_geoms else "no geometry (this booth has none)"
+                    raise _err("LB303", f"{'--geometry: ' if wanted else ''}unknown viewing geometry {want!r} for "
+                                        f"booth {ir.booth_name!r}", loc, value=repr(want), expected=expected)
+            views = wants
 
     sdoc = load_document(doc.resolve(cfg.sample), Sample, allowed_dirs=allowed_dirs)
     sample = SampleSpec.from_document(sdoc)
@@ -344,7 +367,7 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
     bake = None
     bake_note = ""
     if mode in ("auto", "baked"):
-        folder, reason = find_bakes(searched, ir, cfg.lighting)
+        folder, reason = find_bakes(searched, ir, lighting_name)
         if folder is not None:
             fixed = graph["scene"]["platform"]["luminaire_turns_with_platform"]
             bake = load_bake(folder, lamps_turn_with_platform=fixed, views=len(names))
@@ -361,9 +384,9 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                 raise LbsceneUserError(Diagnostic(
                     "LB601", f"the configuration asks for baked lighting but {bake_note}",
                     doc.locate("diffuse"), value=f"diffuse: {mode}",
-                    expected=f"bake products of lighting {cfg.lighting!r}",
+                    expected=f"bake products of lighting {lighting_name!r}",
                     hint=f"run `lbscene build {display_path(booth_dir)}` and `lbscene bake "
-                         f"build/{booth_dir.name} --lighting {cfg.lighting}`, or pass --bake to "
+                         f"build/{booth_dir.name} --lighting {lighting_name}`, or pass --bake to "
                          f"run the bake now, or set `diffuse: analytic`"))
             mode = "analytic"
         else:
@@ -381,8 +404,9 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                    None if xyz else doc.locate("output", "xyz"), value=str(out_xyz),
                    expected="a .npy or .exr file name")
     xyz_from_cli = xyz is not None or (png is not None and bool(cfg.output.xyz))
+    contact = all_geometries or len(views) > 1
     _check_render_outputs(doc, base, out_png, png is not None, out_xyz, xyz_from_cli,
-                          views if all_geometries else None, allowed_dirs)
+                          views if contact else None, allowed_dirs)
     cam = cfg.camera
     camera = CameraSpec(position_mm=cam.position_mm if cam.type == "free" else None,
                         look_at_mm=cam.look_at_mm, vertical_fov_deg=cam.vertical_fov_deg)
@@ -394,7 +418,7 @@ def prepare_from_config(config_path: Path, *, geometry: str | None = None, all_g
                      png=Path(out_png), xyz=Path(out_xyz) if out_xyz else None, diffuse=mode,
                      bake=bake, bake_note=bake_note, exposure=cfg.exposure.mode,
                      white_fraction=cfg.exposure.white_fraction, dither=cfg.dither, camera=camera,
-                     notes=notes, adaptation=adaptation or cfg.adaptation)
+                     notes=notes, adaptation=adaptation or cfg.adaptation, contact=contact)
 
 
 # --------------------------------------------------------------------------- one call: config → files
@@ -512,13 +536,15 @@ def render_job(job: RenderJob, *, contact: bool = False, egl_device: int | None 
 
 
 def render_from_config(config: Path | str, *, out: Path | str | None = None, xyz: Path | str | None = None,
-                       geometry: str | None = None, all_geometries: bool = False,
+                       geometry: str | list[str] | None = None, all_geometries: bool = False,
                        size: tuple[int, int] | None = None, diffuse: str | None = None,
                        adaptation: str | None = None, allowed_dirs=(), egl_device: int | None = None,
-                       progress=None) -> RenderResult:
+                       progress=None, lighting: str | None = None) -> RenderResult:
     """Render a configuration (``kind: render_config``) to its PNG: the whole ``lbscene render``.
 
-    Parameters override the configuration as the command's options do (``out`` is ``-o``).
+    Parameters override the configuration as the command's options do (``out`` is ``-o``,
+    ``lighting`` is ``--lighting``; ``geometry`` a name, a comma-separated list or a list: several
+    views make a contact sheet).
 
     Examples
     --------
@@ -533,6 +559,6 @@ def render_from_config(config: Path | str, *, out: Path | str | None = None, xyz
     job = prepare_from_config(Path(config), geometry=geometry, all_geometries=all_geometries, size=size,
                               png=Path(out) if out is not None else None,
                               xyz=Path(xyz) if xyz is not None else None, diffuse=diffuse,
-                              allowed_dirs=tuple(allowed_dirs), adaptation=adaptation)
-    return render_job(job, contact=all_geometries, egl_device=egl_device, progress=progress,
+                              allowed_dirs=tuple(allowed_dirs), adaptation=adaptation, lighting=lighting)
+    return render_job(job, contact=job.contact, egl_device=egl_device, progress=progress,
                       prepared_s=time.perf_counter() - t0)

@@ -15,4 +15,6 @@ echo "== measurement loop: examples/walkthrough-spectralight-d65"
 bash examples/walkthrough-spectralight-d65/run.sh
 echo "== render a ColorChecker patch in the SpectraLight QC under D65"
 $LB render examples/render/splqc-d65-moderate-red.yaml -o build/demo-render.png
-echo "demo finished: see build/ (walkthrough/report-*.html, walkthrough/history.png, demo-render.png)"
+echo "== does the ISO 3664 booth meet its standard?"
+$LB conformance booths/iso3664-p1-d50 --lighting P1 --report build/conformance-iso3664-p1.html
+echo "demo finished: see build/ (walkthrough/report-*.html, walkthrough/history.png, demo-render.png, conformance-iso3664-p1.html)"

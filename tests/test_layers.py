@@ -38,6 +38,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("engine.truth", ("lbscene.engine.truth",)),
     ("engine.loop", ("lbscene.engine.loop",)),
     ("engine.visual", ("lbscene.engine.visual",)),
+    ("engine.conformance", ("lbscene.engine.conformance",)),
     ("bakers", ("lbscene.bakers",)),
     ("runtimes", ("lbscene.runtimes",)),
     # the API, the command line and the JSON Schema export (`make schemas`, a command)

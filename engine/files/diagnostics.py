@@ -87,6 +87,7 @@ CODES: dict[str, str] = {
     "LB601": "bake products missing",
     "LB602": "invalid bake job file",
     "LB603": "a truth provider cannot represent the booth",
+    "LB604": "an optional dependency the command needs is not installed",
     "LB610": "output cannot be written there",
     "LB611": "output exists and was not written by lbscene",
     "LB612": "output would replace one of the run's inputs",

@@ -321,25 +321,33 @@ class MitsubaTruth:
         return {"type": "twosided", "material": {"type": "diffuse",
                                                   "reflectance": _spectrum(reflectance_1nm)}}
 
-    def _surfaces(self) -> dict:
-        mi = _mi()
+    def surface_meshes(self) -> dict:
+        """``{name: (vertices (V, 3) float32 mm, triangles (T, 3) uint32, bsdf dict)}`` of the booth's
+        surfaces, as :meth:`scene_dict` turns them into meshes (``lbscene export-mitsuba`` writes
+        them as PLY files or inline arrays)."""
         ir = self.ir
         black = np.zeros(471)
         out = {}
         for s in ir.surfaces:
             refl = ir.materials[s.material].reflectance.array_1nm if "interreflection" in self.effects \
                 else black
-            v = s.vertex_array.astype(np.float32)
-            t = s.triangle_array.astype(np.uint32)
+            out[f"surface_{s.id}"] = (s.vertex_array.astype(np.float32), s.triangle_array.astype(np.uint32),
+                                      self._bsdf(refl))
+        return out
+
+    def _surfaces(self) -> dict:
+        mi = _mi()
+        out = {}
+        for name, (v, t, bsdf) in self.surface_meshes().items():
             props = mi.Properties()
-            props["bsdf"] = mi.load_dict(self._bsdf(refl))
-            mesh = mi.Mesh(f"surface_{s.id}", len(v), len(t), props=props)
+            props["bsdf"] = mi.load_dict(bsdf)
+            mesh = mi.Mesh(name, len(v), len(t), props=props)
             params = mi.traverse(mesh)
             # the buffers' own types: scalar variants use dynamic drjit arrays, not mi.Float
             params["vertex_positions"] = type(params["vertex_positions"])(v.ravel())
             params["faces"] = type(params["faces"])(t.ravel())
             params.update()
-            out[f"surface_{s.id}"] = mesh
+            out[name] = mesh
         return out
 
     def _occluders(self) -> dict:

@@ -37,6 +37,39 @@ def default_displays() -> list[Path]:
     return sorted(root.glob("*.yaml")) if root.is_dir() else []
 
 
+#: the built-in displays ``--display`` accepts by name, as ``render`` and ``export-web`` do
+BUILTIN_DISPLAYS = ("builtin:srgb", "srgb")
+
+
+def builtin_srgb_document():
+    """The sRGB reference display of ``builtin:srgb`` as a display document: IEC 61966-2-1
+    primaries, D65 white at 80 cd/m², the sRGB transfer function and no flare (the renderer's
+    built-in display; ``displays/srgb-reference.yaml`` adds the standard's viewing flare)."""
+    from lbscene.schemas.display import Display
+
+    return Display.model_validate({
+        "version": 1, "kind": "display", "name": "sRGB (IEC 61966-2-1), builtin",
+        "provenance": {"status": "published", "source": "IEC 61966-2-1:1999, without viewing flare"},
+        "primaries_xy": {"red": [0.64, 0.33], "green": [0.30, 0.60], "blue": [0.15, 0.06]},
+        "white_xy": [0.3127, 0.3290], "white_luminance_cd_m2": 80, "black_luminance_cd_m2": 0,
+        "tone_response": {c: {"type": "srgb"} for c in ("red", "green", "blue")},
+        "screen_reflectance": 0.0, "bit_depth": 8})
+
+
+def load_display_arg(text: str, mapping: str):
+    """A ``--display`` value: ``builtin:srgb`` or a display file."""
+    from lbscene.engine.colour.display_model import DisplayModel, load_display
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+
+    t = str(text).strip()
+    if t.lower() in BUILTIN_DISPLAYS:
+        return DisplayModel(builtin_srgb_document(), None, mapping=mapping, display_name="builtin:srgb")
+    if t.lower().startswith("builtin:"):
+        raise LbsceneUserError.single("LB500", f"--display: unknown built-in display {t!r}", t,
+                                      value=repr(t), expected="builtin:srgb or a display file")
+    return load_display(Path(t), mapping=mapping)
+
+
 def _fmt(x: float | None) -> str:
     if x is None:
         return "-"
@@ -94,8 +127,9 @@ def register(app: typer.Typer) -> None:
         booth: Optional[List[Path]] = typer.Option(
             None, "--booth", help="Booth folder or file whose lighting configurations to check "
                                   "(repeatable; default: every booth under booths/)."),
-        display: Optional[List[Path]] = typer.Option(
-            None, "--display", help="Display file (repeatable; default: every file in displays/)."),
+        display: Optional[List[str]] = typer.Option(
+            None, "--display", help="Display file or builtin:srgb (repeatable; default: every file in "
+                                    "displays/)."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
         plot: Optional[Path] = typer.Option(None, "--plot", help="Write a per-patch ΔE00 plot (PNG)."),
         cie: bool = typer.Option(True, "--cie/--no-cie",
@@ -127,9 +161,10 @@ def register(app: typer.Typer) -> None:
                                           value=str(plot), expected="a path ending in .png")
         from lbscene.engine.files.outputs import check_outputs
 
-        check_outputs([(plot, "--plot")], inputs=[*(booth or ()), *(display or ())])
+        check_outputs([(plot, "--plot")], inputs=[*(booth or ()), *(Path(d) for d in (display or ())
+                                                                      if d.strip().lower() not in BUILTIN_DISPLAYS)])
         booths = list(booth) if booth else default_booths()
-        displays = [load_display(p, mapping=mapping.value)
+        displays = [load_display_arg(str(p), mapping.value)
                     for p in (list(display) if display else default_displays())]
         lightings: list[tuple[str, str, object]] = []
         if cie:

@@ -1,4 +1,4 @@
-"""``lbscene render CONFIG.yaml [-o out.png] [--geometry 45as15] [--size 1024x768] [--all-geometries]``"""
+"""``lbscene render CONFIG.yaml [-o out.png] [--lighting L] [--geometry 45as15[,45as45]] [--size 1024x768] [--all-geometries]``"""
 
 from __future__ import annotations
 
@@ -54,7 +54,12 @@ def register(app: typer.Typer) -> None:
     def render(
         config: Path = typer.Argument(..., help="Render configuration (kind: render_config)."),
         out: Optional[Path] = typer.Option(None, "--out", "-o", help="PNG to write (default: the config's output.png); the config's float XYZ then goes beside it as NAME.xyz.exr or .npy."),
-        geometry: Optional[str] = typer.Option(None, "--geometry", "-g", help="Viewing geometry, e.g. 45as15."),
+        geometry: Optional[List[str]] = typer.Option(
+            None, "--geometry", "-g",
+            help="Viewing geometry, e.g. 45as15; several (comma-separated or the option repeated) make a "
+                 "contact sheet of those views."),
+        lighting: Optional[str] = typer.Option(
+            None, "--lighting", "-l", help="Lighting configuration of the booth (overrides the config's)."),
         size: Optional[str] = typer.Option(None, "--size", help="WIDTHxHEIGHT in pixels (16..8192 each)."),
         all_geometries: bool = typer.Option(
             False, "--all-geometries",
@@ -98,12 +103,13 @@ def register(app: typer.Typer) -> None:
                 raise _usage_error(f"--size: {exc}", size, "WIDTHxHEIGHT with each side 16..8192")
         if xyz is not None and xyz.suffix.lower() not in (".npy", ".exr"):
             raise _usage_error("--xyz must name a .npy or .exr file", str(xyz), "a .npy or .exr file name")
-        if geometry is not None and all_geometries:
-            raise _usage_error("--geometry and --all-geometries exclude each other", geometry,
+        if geometry and all_geometries:
+            raise _usage_error("--geometry and --all-geometries exclude each other", ",".join(geometry),
                                "one of them")
 
         def prepare():
-            return prepare_from_config(config, geometry=geometry, all_geometries=all_geometries, size=wh,
+            return prepare_from_config(config, geometry=geometry or None, all_geometries=all_geometries, size=wh,
+                                       lighting=lighting,
                                        png=out, xyz=xyz, diffuse=diffuse.value if diffuse else None,
                                        allowed_dirs=tuple(allow_path or ()),
                                        adaptation=adaptation.value if adaptation else None)
@@ -131,7 +137,7 @@ def register(app: typer.Typer) -> None:
             raw = ruamel.yaml.YAML(typ="safe").load(read_text_bounded(Path(config), str(config),
                                                                       4 * 1024 * 1024))
             booth = Path(config).resolve().parent / raw["booth"]
-            _run_bake({"booth": str(booth), "lighting": raw["lighting"]}, console)
+            _run_bake({"booth": str(booth), "lighting": lighting or raw["lighting"]}, console)
             job = prepare()
 
         columns = [SpinnerColumn(), TextColumn("{task.description}")]
@@ -147,7 +153,7 @@ def register(app: typer.Typer) -> None:
                 if advance:
                     prog.advance(task)
 
-            res = render_job(job, contact=all_geometries, egl_device=egl_device, progress=step,
+            res = render_job(job, contact=job.contact, egl_device=egl_device, progress=step,
                              prepared_s=time.perf_counter() - t_start)
         result = res.to_json()
         frames, gl_name, elapsed = res.frames, res.gl_renderer, res.elapsed_s

@@ -121,6 +121,41 @@ def gather_inputs(source: Path, *, lightings=(), samples=(), displays=(), size=N
                            source=source.name, **kw), job
 
 
+def run_export_web(source, out: Path, *, lightings=(), samples=(), displays=(), size=None, session=None,
+                   max_mb: float = DEFAULT_MAX_MB, allowed_dirs=(), progress=None) -> dict:
+    """Export the WebGL2 viewer into ``out`` (what ``lbscene export-web`` does); returns the
+    command's JSON summary (``out``, ``files``, ``booth``, ``lightings``, ``views``, ``samples``,
+    ``displays``, ``data_MB``, ``data_file_MB``, ``session``, ``elapsed_s``)."""
+    from lbscene.engine.files.load import display_path
+    from lbscene.engine.files.outputs import check_output_dir, check_outputs
+    from lbscene.runtimes.web.export import build_export, is_web_export, write_export
+
+    out = Path(out)
+    if out.exists() and out.is_dir() and any(out.iterdir()) and not is_web_export(out):
+        raise _err("LB700", f"--out {display_path(out)} exists and is not a web export", value=str(out),
+                   expected="a new folder, or one an earlier export-web wrote (it is replaced whole)")
+    check_outputs([], inputs=[source, session])
+    check_output_dir(out, option="--out", owned=is_web_export)
+    t0 = time.perf_counter()
+    inp, _ = gather_inputs(Path(source) if source is not None else None, lightings=lightings, samples=samples,
+                           displays=displays, size=size, session=session, allowed_dirs=tuple(allowed_dirs))
+    manifest = build_export(inp, progress=progress)
+    mb = manifest["blob_bytes"] / 1e6
+    if mb > max_mb:
+        raise _err("LB701", f"the export would hold {mb:.0f} MB of data", value=f"{mb:.1f} MB",
+                   expected=f"at most --max-mb {max_mb:g}",
+                   hint="export fewer lightings (--lighting), samples or displays, or raise --max-mb")
+    files = write_export(manifest, out)
+    views = sum(len(lt["views"]) for lt in manifest["lightings"])
+    return {"out": str(out), "files": [str(f) for f in files], "booth": manifest["booth"],
+            "lightings": [lt["name"] for lt in manifest["lightings"]], "views": views,
+            "samples": [s["name"] for s in manifest["samples"]],
+            "displays": [d["name"] for d in manifest["displays"]],
+            "data_MB": round(mb, 2), "data_file_MB": round((out / "lbscene-data.js").stat().st_size / 1e6, 2),
+            "session": manifest["session"]["name"] if manifest["session"] else None,
+            "elapsed_s": round(time.perf_counter() - t0, 2)}
+
+
 def register(app: typer.Typer) -> None:
     @app.command("export-web")
     def export_web(
@@ -143,7 +178,6 @@ def register(app: typer.Typer) -> None:
         """Export a self-contained WebGL2 viewer of the booth (same render graph and shaders as render)."""
         from lbscene.engine.files.load import display_path
         from lbscene.runtimes.render import parse_size
-        from lbscene.runtimes.web.export import build_export, is_web_export, write_export
 
         wh = None
         if size is not None:
@@ -151,35 +185,15 @@ def register(app: typer.Typer) -> None:
                 wh = parse_size(size)
             except ValueError as exc:
                 raise _err("LB500", f"--size: {exc}", value=size, expected="WIDTHxHEIGHT with each side 16..8192")
-        if out.exists() and out.is_dir() and any(out.iterdir()) and not is_web_export(out):
-            raise _err("LB700", f"--out {display_path(out)} exists and is not a web export", value=str(out),
-                       expected="a new folder, or one an earlier export-web wrote (it is replaced whole)")
-        from lbscene.engine.files.outputs import check_output_dir, check_outputs
-
-        check_outputs([], inputs=[source, session])
-        check_output_dir(out, option="--out", owned=is_web_export)
-        t0 = time.perf_counter()
-        inp, _ = gather_inputs(source, lightings=lighting or (), samples=sample or (), displays=display or (),
-                               size=wh, session=session, allowed_dirs=tuple(allow_path or ()))
         from rich.console import Console
 
         console = Console(stderr=True)
         with console.status("export-web") as st:
-            manifest = build_export(inp, progress=lambda m: st.update(f"export-web: {m}"))
-        mb = manifest["blob_bytes"] / 1e6
-        if mb > max_mb:
-            raise _err("LB701", f"the export would hold {mb:.0f} MB of data", value=f"{mb:.1f} MB",
-                       expected=f"at most --max-mb {max_mb:g}",
-                       hint="export fewer lightings (--lighting), samples or displays, or raise --max-mb")
-        files = write_export(manifest, out)
-        views = sum(len(lt["views"]) for lt in manifest["lightings"])
-        result = {"out": str(out), "files": [str(f) for f in files], "booth": manifest["booth"],
-                  "lightings": [lt["name"] for lt in manifest["lightings"]], "views": views,
-                  "samples": [s["name"] for s in manifest["samples"]],
-                  "displays": [d["name"] for d in manifest["displays"]],
-                  "data_MB": round(mb, 2), "data_file_MB": round((out / "lbscene-data.js").stat().st_size / 1e6, 2),
-                  "session": manifest["session"]["name"] if manifest["session"] else None,
-                  "elapsed_s": round(time.perf_counter() - t0, 2)}
+            result = run_export_web(source, out, lightings=lighting or (), samples=sample or (),
+                                    displays=display or (), size=wh, session=session, max_mb=max_mb,
+                                    allowed_dirs=tuple(allow_path or ()),
+                                    progress=lambda m: st.update(f"export-web: {m}"))
+        views = result["views"]
         if format is Format.json:
             typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
             return
