@@ -137,16 +137,25 @@ class Diagnostic:
             raise ValueError(f"unregistered diagnostic code {self.code!r}")
 
     def format(self) -> str:
-        """``file:line:col: severity CODE: message (got …; expected …)``."""
-        where = f"{self.location}: " if self.location else ""
+        """``file:line:col: severity CODE: message (got …; expected …)``.
+
+        Control characters of every part (a file or sample name may hold ``\\x1b[2J`` or a
+        newline) are shown as escapes: one diagnostic is one line, plus its hint line.
+        """
+        from .textsafe import printable
+
+        def p(x) -> str:
+            return printable(x, newlines=False)
+
+        where = f"{p(self.location)}: " if self.location else ""
         extra = []
         if self.value is not None:
-            extra.append(f"got {self.value}")
+            extra.append(f"got {p(self.value)}")
         if self.expected is not None:
-            extra.append(f"expected {self.expected}")
+            extra.append(f"expected {p(self.expected)}")
         tail = f" ({'; '.join(extra)})" if extra else ""
-        hint = f"\n    hint: {self.hint}" if self.hint else ""
-        return f"{where}{self.severity.value} {self.code}: {self.message}{tail}{hint}"
+        hint = f"\n    hint: {p(self.hint)}" if self.hint else ""
+        return f"{where}{self.severity.value} {self.code}: {p(self.message)}{tail}{hint}"
 
     def to_json(self) -> dict:
         d = asdict(self)

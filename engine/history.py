@@ -142,6 +142,20 @@ def plot_history(entries: list[dict], ax=None, title: str = ""):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .textsafe import plain_text_plots
+
+    # labels and title are user text (effect ids, file names): drawn as written, never as
+    # mathtext; save the figure inside plain_text_plots() too (tick labels are made then)
+    with plain_text_plots():
+        fig = _plot_history(plt, textwrap, entries, ax, title)
+    for t in fig.findobj(matplotlib.text.Text):
+        t.set_parse_math(False)
+    return fig
+
+
+def _plot_history(plt, textwrap, entries, ax, title):
+    from .textsafe import printable
+
     if ax is None:
         fig, ax = plt.subplots(figsize=(max(5.0, 1.9 * len(entries) + 2.0), 4.2), dpi=110)
     else:
@@ -162,11 +176,12 @@ def plot_history(entries: list[dict], ax=None, title: str = ""):
     ax.set_ylim(0, 1.2 * top)
     ax.set_xlim(min(steps) - 0.5, max(steps) + 0.5)
     ax.set_xticks(steps)
-    ax.set_xticklabels([f"{s_}\n" + textwrap.fill(e.get("label", ""), 24) for s_, e in zip(steps, entries)],
+    ax.set_xticklabels([f"{s_}\n" + textwrap.fill(printable(e.get("label", ""), newlines=False), 24)
+                        for s_, e in zip(steps, entries)],
                        fontsize=7)
     ax.set_ylabel("RMSE (%)")
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
-    ax.set_title(title or "error per step", fontsize=10)
+    ax.set_title(printable(title or "error per step", newlines=False), fontsize=10)
     fig.tight_layout()
     return fig

@@ -97,6 +97,14 @@ def _png(fig) -> str:
 
 
 def _plots(stats: dict) -> list[tuple[str, str]]:
+    """The report's figures; sample and observer names are drawn as written (no mathtext)."""
+    from .textsafe import plain_text_plots
+
+    with plain_text_plots():
+        return _make_plots(stats)
+
+
+def _make_plots(stats: dict) -> list[tuple[str, str]]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -104,7 +112,9 @@ def _plots(stats: dict) -> list[tuple[str, str]]:
 
     out = []
     cases = stats["cases"]
-    labels = [f"{c['lighting']}/{c['geometry']}/{c['sample']}" for c in cases]
+    from .textsafe import printable
+
+    labels = [printable(f"{c['lighting']}/{c['geometry']}/{c['sample']}", newlines=False) for c in cases]
     fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(cases) + 2), 3.6))
     ax.bar(range(len(cases)), [c["mean_score"] for c in cases], yerr=[c["sd_score"] for c in cases],
            color="#7a9cc6", capsize=2)
@@ -148,7 +158,11 @@ def _plots(stats: dict) -> list[tuple[str, str]]:
 
 def render_html(stats: dict, session) -> str:
     """One self-contained HTML page (plots as data: URIs)."""
-    e = html.escape
+    from .textsafe import printable
+
+    def e(x) -> str:
+        return html.escape(printable(x))
+
     s = stats["summary"]
 
     def num(v, fmt="{:.2f}"):

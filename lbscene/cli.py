@@ -64,7 +64,7 @@ def print_diagnostics(diags, *, stream=None) -> None:
     """Print diagnostics, one per line (plain text: they are meant to be grepped)."""
     stream = stream or sys.stderr
     for d in diags:
-        print(d.format(), file=stream)
+        print(d.format(), file=stream)   # Diagnostic.format shows control characters as escapes
 
 
 def _wants_json(argv: list[str]) -> bool:
@@ -77,10 +77,22 @@ def _wants_json(argv: list[str]) -> bool:
 
 def _json_errors(diags, code: int = 2) -> None:
     """Errors under ``--format json``: one JSON object on stdout (nothing else to parse)."""
-    import json
+    from lbscene.engine.textsafe import json_text
 
-    print(json.dumps({"ok": False, "exit_code": code, "errors": [d.to_json() for d in diags]},
-                     indent=2, ensure_ascii=False))
+    print(json_text({"ok": False, "exit_code": code, "errors": [d.to_json() for d in diags]}, indent=2))
+
+
+def _tolerant_streams() -> None:
+    """Characters the console's encoding cannot show are written as escapes (``\\u0394``)
+    instead of raising: ``PYTHONIOENCODING=ascii`` or a C locale must not crash a command."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is None or (getattr(stream, "errors", None) or "strict") != "strict":
+            continue
+        try:
+            reconfigure(errors="backslashreplace")
+        except (ValueError, OSError):   # a detached or closed stream: leave it
+            pass
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -90,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     ``{"ok": false, "exit_code": 2, "errors": [{code, message, location, …}]}``, instead of text on
     stderr.
     """
+    _tolerant_streams()
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json = _wants_json(argv)
     from lbscene.engine.outputs import INPUTS

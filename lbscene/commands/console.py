@@ -4,6 +4,10 @@
 * Piped or redirected: tables as wide as they need (``$COLUMNS`` if set, else 200
   characters; cells wrap instead of being cut with "…"), and progress as plain lines,
   one per step, on stderr — a log keeps them, a pipe is not filled with escape codes.
+* User text is shown as it is written: the consoles parse no rich markup and no emoji codes
+  in strings (a sample named ``[/link]`` is printed, not parsed), and control characters are
+  shown as escapes (:func:`lbscene.engine.textsafe.printable`); styles are given as ``style=``
+  or :class:`rich.text.Text`.  :func:`echo` does the same for plain lines.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import os
 import sys
 import time
 
-__all__ = ["out_console", "err_console", "progress", "PlainProgress"]
+__all__ = ["out_console", "err_console", "progress", "PlainProgress", "echo", "styled"]
 
 #: Width of tables written to a pipe or a file (no terminal to fit).
 PIPED_WIDTH = 200
@@ -27,18 +31,53 @@ def _width(stream) -> int | None:
         return PIPED_WIDTH
 
 
-def out_console():
-    """Console for a command's result (stdout)."""
+def _safe_console(**kw):
+    """A rich console that renders strings literally: no markup, no emoji codes, control
+    characters escaped (table cells, titles and status lines included)."""
     from rich.console import Console
 
-    return Console(width=_width(sys.stdout))
+    from lbscene.engine.textsafe import printable
+
+    class _LiteralConsole(Console):
+        def render_str(self, text, **options):
+            options["markup"] = False
+            options["emoji"] = False
+            return super().render_str(printable(text), **options)
+
+    return _LiteralConsole(markup=False, emoji=False, **kw)
+
+
+def out_console():
+    """Console for a command's result (stdout)."""
+    return _safe_console(width=_width(sys.stdout))
 
 
 def err_console():
     """Console for progress and notes (stderr)."""
-    from rich.console import Console
+    return _safe_console(stderr=True, width=_width(sys.stderr))
 
-    return Console(stderr=True, width=_width(sys.stderr))
+
+def styled(*parts):
+    """A :class:`rich.text.Text` of ``(text, style)`` pairs and plain strings, user text escaped:
+    ``styled(("verdict: ", ""), (str(v), "bold red"))``."""
+    from rich.text import Text
+
+    from lbscene.engine.textsafe import printable
+
+    out = Text()
+    for p in parts:
+        text, style = (p, "") if isinstance(p, str) else p
+        out.append(printable(text), style=style or None)
+    return out
+
+
+def echo(text: str = "", *, err: bool = False) -> None:
+    """One line of plain text (``typer.echo``), control characters shown as escapes."""
+    import typer
+
+    from lbscene.engine.textsafe import printable
+
+    typer.echo(printable(text), err=err)
 
 
 class PlainProgress:

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.textsafe import json_text
 
 #: Above this the export is refused unless --max-mb says otherwise (a browser tab holds
 #: the whole data file in memory, decoded).
@@ -161,9 +162,9 @@ def register(app: typer.Typer) -> None:
         t0 = time.perf_counter()
         inp, _ = gather_inputs(source, lightings=lighting or (), samples=sample or (), displays=display or (),
                                size=wh, session=session, allowed_dirs=tuple(allow_path or ()))
-        from rich.console import Console
+        from lbscene.commands.console import err_console
 
-        console = Console(stderr=True)
+        console = err_console()
         with console.status("export-web") as st:
             manifest = build_export(inp, progress=lambda m: st.update(f"export-web: {m}"))
         mb = manifest["blob_bytes"] / 1e6
@@ -181,9 +182,9 @@ def register(app: typer.Typer) -> None:
                   "session": manifest["session"]["name"] if manifest["session"] else None,
                   "elapsed_s": round(time.perf_counter() - t0, 2)}
         if format is Format.json:
-            typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
+            echo(json_text(result, indent=2))
             return
-        typer.echo(f"wrote {display_path(out)}/index.html  ({len(result['lightings'])} lighting(s), {views} views, "
+        echo(f"wrote {display_path(out)}/index.html  ({len(result['lightings'])} lighting(s), {views} views, "
                    f"{len(result['samples'])} sample(s), {len(result['displays'])} display(s); "
                    f"{result['data_file_MB']} MB; {result['elapsed_s']} s)")
-        typer.echo("open index.html in a browser with WebGL2 (works from file://; nothing is fetched)")
+        echo("open index.html in a browser with WebGL2 (works from file://; nothing is fetched)")

@@ -234,3 +234,40 @@ def test_session_schema_errors_are_located(run_cli, tmp_path):
     code, _, err = run_cli("validate-config", bad)
     assert code == 2
     assert f"session.yaml:{line}:10: error" in err and "repeats" in err
+
+
+def _default_session(tmp_path):
+    """The test session as a user writes it first: no repeats (the default, 1), no options."""
+    for name in ("sample-gonio.yaml", "sample-grey.yaml", "tube-gonio.yaml"):
+        (tmp_path / name).write_text((DATA / name).read_text())
+    ses_file = tmp_path / "session.yaml"
+    ses_file.write_text(SESSION.read_text().replace("repeats: 2\n", ""))
+    return ses_file
+
+
+def test_visual_report_with_default_session_text_json_html(run_cli, tmp_path):
+    # repeats: 1 (the default) gives no intra-observer STRESS: the report says so instead of
+    # raising TypeError while formatting None
+    ses_file = _default_session(tmp_path)
+    ses = load_session(ses_file)
+    assert ses.model.repeats == 1
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(ses, lambda t: 4.0 if t["observer"] == "O1" else 3.5))
+    code, out, err = run_cli("visual-report", res, "--session", ses_file)
+    assert code == 0, err
+    assert ("intra-observer STRESS: mean — (one repeat per observer: no intra-observer STRESS)  "
+            "inter-observer STRESS: mean 0.0  (no --model-de: no STRESS against the model)") in out
+    code, out, err = run_cli("visual-report", res, "--session", ses_file, "--format", "json")
+    assert code == 0, err
+    import json
+
+    st = json.loads(out)
+    assert st["summary"]["intra_observer_stress_mean"] is None
+    assert st["intra_observer_stress"] == {"O1": None, "O2": None}
+    # every case: the two observers' grades 4 and 3.5 (ISO 105-A02: ΔV 1.7 and 2.5)
+    assert {(c["mean_score"], c["mean_delta_v"]) for c in st["cases"]} == {(3.75, 2.1)}
+    report = tmp_path / "report.html"
+    code, _, err = run_cli("visual-report", res, "--session", ses_file, "--report", report)
+    assert code == 0, err
+    html = report.read_text()
+    assert "<tr><td>—</td><td>0.0</td>" in html and html.count("data:image/png;base64,") == 2
