@@ -72,6 +72,8 @@ CODES: dict[str, str] = {
     "LB309": "a lamp reaches a receiver point or crosses a booth surface",
     "LB310": "illuminance outside ASTM D1729 / ISO 3668 / ISO 3664 recommendations",
     "LB311": "provenance marks values as estimates",
+    "LB312": "mesh face is degenerate (zero area) or its normal overflows",
+    "LB313": "mesh reaches outside the booth",
     "LB400": "measurement file: missing or unexpected column",
     "LB401": "measurement file: value is not a finite number",
     "LB402": "measurement file: negative value",

@@ -56,6 +56,10 @@ LIMITS: dict[str, Limit] = {
                            "memory grows with points × receivers × patches"),
     "patches": Limit("LBSCENE_MAX_PATCHES", 6000, "inter-reflection patches (booth interior and meshes)",
                      "form factors take patches² × 8 bytes"),
+    "mesh_triangles": Limit("LBSCENE_MAX_MESH_TRIANGLES", 20000,
+                            "mesh triangles of one geometry file (a polygon of n corners counts n − 2)",
+                            "each triangle is two inter-reflection patches and a visibility test at "
+                            "every receiver"),
 }
 
 _MAX_RAISED = 10 ** 9

@@ -12,7 +12,10 @@ LB304  duplicate id                                                error
 LB300  lamp outside the booth interior                             error
 LB306  sample position outside the booth                           error
 LB309  lamp reaches a receiver point or crosses a surface             error
-LB510  more lamps or point sources than the work bound                error
+LB203  IES or mesh file with wrong content (located in that file)     error
+LB312  mesh face degenerate or with an overflowing normal            error
+LB313  mesh vertex outside the booth (at any platform rotation)       error
+LB510  more lamps, point sources or mesh triangles than the bound     error
 LB301  spectrum does not cover the band range (390–710 nm)         error
 LB302  reflectance/transmittance outside [0, 1]                    error
 LB307  effect parameter names something the booth lacks            error
@@ -195,6 +198,10 @@ def lint_booth(doc: LoadedDocument, *, illuminance: bool = True) -> list[Diagnos
                 read_ies(doc.resolve(lp.profile.path), lp.profile.path)
             except _UserError as exc:
                 diags.extend(exc.diagnostics)
+    # geometry files are opened here too: every problem of a mesh is located in its file
+    from .compile import geometry_file_diagnostics
+
+    diags.extend(geometry_file_diagnostics(doc))
     for role, mat in booth.surfaces.model_dump().items():
         if mat is not None and mat not in mats:
             E("LB202", f"surface '{role}' uses undefined material '{mat}'", "surfaces", role,
