@@ -32,14 +32,17 @@ BOOTH_FILENAME = "booth.yaml"
 
 def find_booth_file(path: Path | str) -> Path:
     """A booth folder or file → its ``booth.yaml``."""
+    from .yamlio import path_kind
+
     p = Path(path)
-    if p.is_dir():
+    kind = path_kind(p)
+    if kind == "dir":
         f = p / BOOTH_FILENAME
-        if not f.is_file():
+        if path_kind(f, display_path(f)) != "file":
             raise LbsceneUserError.single("LB011", f"no {BOOTH_FILENAME} in this folder",
                                           display_path(p), expected=f"a folder with {BOOTH_FILENAME}")
         return f
-    if not p.exists():
+    if kind == "missing":
         from .shipped import shipped_booth, shipped_booths
 
         # a bare name that is not a path here: one of the booths shipped with lbscene

@@ -48,6 +48,8 @@ CODES: dict[str, str] = {
     "LB011": "path is a directory without a recognised document",
     "LB012": "not a regular file (a FIFO, device or socket is never read)",
     "LB013": "file cannot be read (permission or I/O error)",
+    "LB014": "CSV file cannot be parsed (a cell over the size bound, broken quoting)",
+    "LB015": "JSON syntax error, or nesting deeper than the bound",
     "LB100": "unknown key",
     "LB101": "wrong type",
     "LB102": "missing required key",

@@ -68,16 +68,16 @@ def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
     if spec.type == "inline":
         return spec.wavelengths_nm[0], spec.wavelengths_nm[-1]
     if spec.type == "csv":
-        import csv
-        import io
-
         from .yamlio import read_text_bounded
         from .spectra import MAX_CSV_BYTES
 
         from .load import display_path
 
-        text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), MAX_CSV_BYTES)
-        rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
+        from .yamlio import csv_rows
+
+        shown = display_path(resolve(spec.path))
+        text = read_text_bounded(resolve(spec.path), shown, MAX_CSV_BYTES)
+        rows = [r for _, r in csv_rows(text, shown) if r and not r[0].lstrip().startswith("#")]
         try:
             col = [c.strip() for c in rows[0]].index("wavelength_nm")
             wl = [float(r[col]) for r in rows[1:]]

@@ -15,8 +15,6 @@ percent reflectances (LB406), too few rows (LB407).
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
@@ -137,7 +135,9 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
     def err(code, msg, line=0, col=0, **kw):
         diags.append(Diagnostic(code, msg, SourceLocation(display, line, col), **kw))
 
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))
+    from .yamlio import csv_rows
+
+    rows = [(i, r) for i, r in csv_rows(text, display)
             if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     empty = IlluminanceData(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), [], np.zeros(0, int), [])
     if not rows:
@@ -280,8 +280,11 @@ def _tile_column(spec, resolve):
 
     from .load import display_path
 
-    text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), 16 * 1024 * 1024)
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
+    from .yamlio import csv_rows
+
+    shown = display_path(resolve(spec.path))
+    text = read_text_bounded(resolve(spec.path), shown, 16 * 1024 * 1024)
+    rows = [r for _, r in csv_rows(text, shown) if r and not r[0].lstrip().startswith("#")]
     if rows and "radiance" in [c.strip() for c in rows[0]]:
         return spec.model_copy(update={"column": "radiance"})
     return spec
@@ -299,8 +302,11 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
     from .load import display_path, load_document
     from .spectra import evaluate_spectrum
 
+    from .yamlio import path_kind
+
     path = Path(path)
-    if path.is_dir():
+    kind = path_kind(path)
+    if kind == "dir":
         cands = sorted(path.glob("*.yaml"))
         from .yamlio import read_bytes_bounded
 
@@ -317,7 +323,7 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                                           "folder", display_path(path),
                                           expected="a measurement-set YAML file (kind: measurement_set)")
         path = ms[0]
-    if not path.exists():
+    elif kind == "missing":
         raise LbsceneUserError.single("LB010", "file not found", str(path))
     doc = load_document(path, MeasurementSet, allowed_dirs=allowed_dirs)
     m: MeasurementSet = doc.model

@@ -92,9 +92,13 @@ def _spectrum(res):
 
 
 def _history(res):
+    from .diagnostics import LbsceneUserError
     from .history import plot_history, read_history
 
-    entries = read_history(res.meas.history_path)
+    try:
+        entries = read_history(res.meas.history_path)
+    except LbsceneUserError:      # a history that cannot be read has no plot; `lbscene history` says why
+        return None
     if not entries:
         return None
     return _png(plot_history(entries, title=f"history of {res.meas.path.name}"))

@@ -28,8 +28,40 @@ def _lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     return lint_booth(doc)
 
 
+def _lint_measurement_set(doc: LoadedDocument) -> list[Diagnostic]:
+    """A measurement set's data files, read as ``compare`` reads them (each problem located in
+    its file): illuminance CSVs, the white tile's spectra, measured surface reflectances.  The
+    booth's placement checks (points outside it) need the booth compiled and wait for compare."""
+    from .measurements import _shown, _tile_column, read_illuminance_csv
+    from .spectra import evaluate_spectrum
+
+    m = doc.model
+    out: list[Diagnostic] = []
+    for f in m.illuminance:
+        p = doc.resolve(f.path)
+        try:
+            _, diags = read_illuminance_csv(p, display_path(p), default_z_mm=f.z_mm,
+                                            default_orientation=f.orientation)
+        except LbsceneUserError as exc:
+            diags = exc.diagnostics
+        out += diags
+    spectra = [(spec, "reflectance", f"surface_reflectances.{mid}") for mid, spec in m.surface_reflectances.items()]
+    if m.white_tile is not None:
+        spectra += [(m.white_tile.radiance, "emission", "white_tile.radiance"),
+                    (m.white_tile.reflectance, "reflectance", "white_tile.reflectance")]
+    for spec, kind, what in spectra:
+        try:
+            if what == "white_tile.radiance":
+                spec = _tile_column(spec, doc.resolve)
+            evaluate_spectrum(spec, doc.resolve, kind, display=_shown(doc, spec, what))
+        except LbsceneUserError as exc:
+            out += exc.diagnostics
+    return out
+
+
 #: kind → semantic rules run after schema validation (other modules may add theirs).
-LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {"booth": _lint_booth}
+LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {"booth": _lint_booth,
+                                                                    "measurement_set": _lint_measurement_set}
 
 
 @dataclass
@@ -59,23 +91,33 @@ class ValidationReport:
 
 def collect_documents(paths: Iterable[Path]) -> tuple[list[Path], list[Diagnostic]]:
     """Files to validate: files as given, folders searched for *.yaml."""
+    from .yamlio import path_kind
+
     out, diags = [], []
     for p in paths:
         p = Path(p)
-        if p.is_dir():
+        try:
+            kind = path_kind(p)
+        except LbsceneUserError as exc:
+            diags += exc.diagnostics
+            continue
+        if kind == "dir":
             found = sorted(f for f in p.rglob("*.yaml")
                            if not any(part in SKIP_DIRS for part in f.relative_to(p).parts[:-1]))
             if not found:
                 diags.append(Diagnostic("LB011", "no .yaml documents in this folder",
                                         SourceLocation(display_path(p))))
             out.extend(found)
-        elif p.exists():
+        elif kind != "missing":
             out.append(p)
         else:
             diags.append(Diagnostic("LB010", "file not found", SourceLocation(str(p))))
     seen, unique = set(), []
     for f in out:
-        key = f.resolve()
+        try:
+            key = f.resolve()
+        except (OSError, RuntimeError):   # a loop under a folder: validate_file locates it
+            key = f
         if key not in seen:
             seen.add(key)
             unique.append(f)

@@ -12,7 +12,6 @@ The visual-test report: what the seed study reported, from the observers' result
 from __future__ import annotations
 
 import base64
-import csv
 import html
 import io
 import math
@@ -31,24 +30,39 @@ def _f(x):
 
 
 def read_model_delta_e(path: Path, session) -> dict:
-    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed."""
+    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed.
+
+    Read bounded (:data:`~lbscene.engine.visual_protocol.MAX_RESULTS_BYTES`); a ΔE00 that is not a
+    finite number ≥ 0 is a located ``LB710``.
+    """
     from lbscene.engine.load import display_path
+    from lbscene.engine.yamlio import csv_rows, read_text_bounded
+
+    from .visual_protocol import MAX_RESULTS_BYTES
 
     shown = display_path(Path(path))
-    if not Path(path).is_file():
-        raise LbsceneUserError.single("LB010", "file not found", shown)
-    reader = csv.DictReader(io.StringIO(Path(path).read_text(encoding="utf-8-sig")))
+    table = csv_rows(read_text_bounded(Path(path), shown, MAX_RESULTS_BYTES), shown)
     need = ("lighting", "geometry", "sample", "delta_e00")
-    if any(c not in (reader.fieldnames or []) for c in need):
+    header = [h.strip() for h in table[0][1]] if table else []
+    if any(c not in header for c in need):
         raise LbsceneUserError.single("LB710", "missing column(s)", shown, 1, 1,
                                       expected=f"a CSV with columns {', '.join(need)}")
     out = {}
-    for i, row in enumerate(reader):
+    for line, row in table[1:]:
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise LbsceneUserError.single("LB710", f"row has {len(row)} fields, header has {len(header)}",
+                                          shown, line, 1)
+        d = dict(zip(header, row))
         try:
-            out[(row["lighting"], row["geometry"], row["sample"])] = float(row["delta_e00"])
+            de = float(d["delta_e00"])
         except ValueError:
-            raise LbsceneUserError.single("LB710", "delta_e00 must be a number", shown, i + 2, 1,
-                                          value=repr(row["delta_e00"]))
+            de = math.nan
+        if not math.isfinite(de) or de < 0:
+            raise LbsceneUserError.single("LB710", "delta_e00 must be a finite number ≥ 0", shown, line, 1,
+                                          value=repr(d["delta_e00"][:40]), expected="a ΔE00 ≥ 0")
+        out[(d["lighting"], d["geometry"], d["sample"])] = de
     missing = [c for c in session.cases if c not in out]
     if missing:
         raise LbsceneUserError.single("LB711", f"no model ΔE00 for case {' / '.join(missing[0])}", shown,

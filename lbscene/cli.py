@@ -127,6 +127,22 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:
+        # the last net under the commands' own checks: a path the system refuses (a name too long,
+        # a loop of symbolic links, a full disk) is a located error, never a traceback
+        if exc.filename is None:
+            raise
+        from lbscene.engine.diagnostics import Diagnostic, SourceLocation
+
+        shown = str(exc.filename)
+        shown = shown if len(shown) <= 120 else shown[:60] + "…" + shown[-40:]
+        d = Diagnostic("LB013", f"cannot use the path: {exc.strerror or exc}", SourceLocation(shown))
+        if as_json:
+            _json_errors([d])
+        else:
+            print_diagnostics([d])
+            print("1 error", file=sys.stderr)
+        return 2
     except Exception as exc:  # click usage errors
         import click
 

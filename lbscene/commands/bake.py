@@ -49,7 +49,9 @@ def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
     from lbscene.engine.diagnostics import LbsceneUserError
     from lbscene.engine.ir import SceneIR
 
-    if target.is_dir() and (target / "scene.ir.json").is_file():
+    from lbscene.engine.yamlio import path_kind
+
+    if path_kind(target) == "dir" and path_kind(target / "scene.ir.json") == "file":
         try:
             from lbscene.engine.yamlio import read_text_bounded
 

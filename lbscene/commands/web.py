@@ -69,10 +69,14 @@ def gather_inputs(source: Path, *, lightings=(), samples=(), displays=(), size=N
             raise _err("LB500", "nothing to export", expected="a render configuration or a booth, or "
                        "--session with a session that names its render_config")
         source = ses.doc.resolve(ses.model.render_config)
+    from lbscene.engine.yamlio import path_kind
+
     source = Path(source)
     job = None
-    is_config = source.is_file() and source.suffix.lower() in (".yaml", ".yml") and \
-        "render_config" in source.read_text(errors="replace")[:4000]
+    is_config = False
+    if path_kind(source) == "file" and source.suffix.lower() in (".yaml", ".yml"):
+        with open(source, "rb") as fh:       # the head only: a multi-GB file is not read whole here
+            is_config = b"render_config" in fh.read(4000)
     if is_config:
         job = prepare_from_config(source, allowed_dirs=allowed_dirs)
         ir = job.ir

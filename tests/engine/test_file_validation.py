@@ -198,3 +198,120 @@ def test_bad_usd_mesh_is_located_in_the_usd_file(minimal_booth, run_cli, points,
     code, _, err = run_cli("validate-config", minimal_booth)
     assert code == 2 and "Traceback" not in err
     assert expected in err
+
+
+# --------------------------------------------------------------------------- measurement sets, CSV, JSON
+
+@pytest.fixture
+def meas_dir(minimal_booth, tmp_path):
+    import os
+
+    d = tmp_path / "m"
+    d.mkdir()
+    (d / "grid.csv").write_text("x_mm,y_mm,illuminance_lx\n0,0,2000\n100,0,1900\n0,100,1900\n")
+    (d / "meas.yaml").write_text(
+        "version: 1\nkind: measurement_set\nname: t\n"
+        f"booth: {os.path.relpath(minimal_booth, d)}\nlighting: A\n"
+        "instrument: {illuminance_meter: m, repeatability_percent: 0.5}\n"
+        "illuminance:\n  - path: grid.csv\n")
+    return d
+
+
+def test_measurement_data_files_are_read_at_validate_time(meas_dir, run_cli):
+    (meas_dir / "grid.csv").write_text("x_mm,y_mm,illuminance_lx\n0,0,2000\n100,0,nan\n0,100,-3\n")
+    code, _, err = run_cli("validate-config", meas_dir / "meas.yaml", cwd=meas_dir)
+    assert code == 2
+    assert "grid.csv:3:7: error LB401: 'illuminance_lx' is not a finite number (got 'nan'; expected a finite " \
+           "number)" in err
+    assert "grid.csv:4:7: error LB402: negative illuminance (got '-3'; expected a reading > 0 lx)" in err
+
+
+def test_a_csv_cell_over_128_kB_is_a_located_error(meas_dir, run_cli, minimal_booth):
+    (meas_dir / "grid.csv").write_text("x_mm,y_mm,illuminance_lx\n0,0,2000\n1,\"" + "9" * 200_000 + "\",3\n")
+    code, _, err = run_cli("validate-config", meas_dir / "meas.yaml", cwd=meas_dir)
+    assert code == 2 and "Traceback" not in err
+    assert "grid.csv:3:1: error LB014: a CSV cell is larger than 128 kB (expected cells of at most 131072 " \
+           "characters)" in err
+    (minimal_booth / "spectra" / "paint.csv").write_text("wavelength_nm,r\n" + "5" * 140_000 + ",0.5\n")
+    code, _, err = run_cli("validate-config", minimal_booth, cwd=minimal_booth)
+    assert code == 2 and "spectra/paint.csv:2:1: error LB014: a CSV cell is larger than 128 kB" in err
+
+
+def test_instrument_file_values_are_checked(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    colour = pytest.importorskip("colour")
+    from lbscene.engine.spectra import evaluate_spectrum
+    from lbscene.schemas.spectrum import InstrumentFileSpectrum
+
+    src = Path(colour.__file__).parent / "io" / "tests" / "resources" / "RANDOM_001_02._3262K.csv"
+    text = src.read_text()
+    for bad, code, msg in (("nan", "LB401", "the value at 500 nm is not a finite number"),
+                           ("-5", "LB402", "the value at 500 nm is negative")):
+        f = tmp_path / f"{code}.csv"
+        f.write_text("\n".join(f"Spectral Data 500[nm],{bad}" if ln.startswith("Spectral Data 500[nm]") else ln
+                               for ln in text.splitlines()) + "\n")
+        spec = InstrumentFileSpectrum(type="instrument_file", format="sekonic", path=f.name)
+        with pytest.raises(LbsceneUserError) as exc:
+            evaluate_spectrum(spec, lambda p: tmp_path / p, "emission", display=f.name)
+        d = exc.value.diagnostics[0]
+        assert (d.code, d.message, d.location.file) == (code, msg, str(f))
+    shutil.copy(src, tmp_path / "ok.csv")     # the instrument's own export passes
+    spec = InstrumentFileSpectrum(type="instrument_file", format="sekonic", path="ok.csv")
+    assert evaluate_spectrum(spec, lambda p: tmp_path / p, "emission").max() > 0
+
+
+def test_a_history_line_with_a_non_numeric_field(meas_dir, run_cli):
+    h = meas_dir / "meas.history.jsonl"
+    code, _, err = run_cli("compare", meas_dir / "meas.yaml", "--no-diagnose", "--no-fit")
+    assert code == 0, err
+    line = h.read_text().splitlines()[0]
+    h.write_text(line + "\n" + line.replace('"rmse_percent": ', '"rmse_percent": "abc", "x": ') + "\n")
+    code, out, err = run_cli("history", meas_dir / "meas.yaml")
+    assert code == 2 and "Traceback" not in err
+    assert (f"{h}:2:1: error LB101: history line: 'rmse_percent' has the wrong type (got 'abc'; expected a "
+            "finite number or null)") in err
+    # compare does not rewrite a history it cannot read (the damaged line would be lost)
+    before = h.read_text()
+    assert run_cli("compare", meas_dir / "meas.yaml", "--no-diagnose", "--no-fit")[0] == 2
+    assert h.read_text() == before
+    h.write_text(line + "\n" + "[" * 5000 + "]" * 5000 + "\n")
+    code, _, err = run_cli("history", meas_dir / "meas.yaml")
+    assert code == 2 and f"{h}:2:65: error LB015: JSON nested too deeply (expected at most 64 levels)" in err
+
+
+@pytest.mark.parametrize("kind", ["long name", "symlink loop"])
+@pytest.mark.parametrize("command", ["validate-config", "build", "compare", "plan", "history", "render", "bake",
+                                     "export-web", "visual-report"])
+def test_a_path_the_system_refuses_is_a_located_error(tmp_path, run_cli, kind, command):
+    if kind == "long name":
+        p = tmp_path / ("a" * 300 + ".yaml")             # ENAMETOOLONG
+    else:
+        (tmp_path / "l1.yaml").symlink_to(tmp_path / "l2.yaml")
+        (tmp_path / "l2.yaml").symlink_to(tmp_path / "l1.yaml")
+        p = tmp_path / "l1.yaml"                           # ELOOP
+    args = {"build": ["--out", tmp_path / "o"], "export-web": ["--out", tmp_path / "o"],
+            "visual-report": ["--session", p], "render": ["--no-input"]}.get(command, [])
+    code, out, err = run_cli(command, p, *args)
+    assert code == 2 and "Traceback" not in err
+    assert "error LB013: cannot" in err
+    assert ("name is longer than the file system allows" in err or "File name too long" in err) if kind == \
+        "long name" else ("loop of symbolic links" in err or "Too many levels of symbolic links" in err)
+
+
+def test_a_deeply_nested_bake_manifest_is_skipped_or_located(tmp_path):
+    from lbscene.engine.compile import compile_booth
+    from lbscene.runtimes.bake import find_bakes, load_bake
+
+    d = tmp_path / "bake"
+    d.mkdir()
+    (d / "manifest.json").write_text('{"products": ' + "[" * 50_000 + "]" * 50_000 + "}")
+    from pathlib import Path
+
+    ir = compile_booth(Path(__file__).resolve().parents[1] / "data" / "minimal-booth")
+    assert find_bakes([d], ir, "A") == (None, "no bake products found")   # looked past, no RecursionError
+    with pytest.raises(LbsceneUserError) as exc:
+        load_bake(d)
+    assert exc.value.diagnostics[0].format().startswith(f"{d / 'manifest.json'}:1:")
+    assert "error LB015: JSON nested too deeply" in exc.value.diagnostics[0].format()

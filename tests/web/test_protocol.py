@@ -271,3 +271,70 @@ def test_visual_report_with_default_session_text_json_html(run_cli, tmp_path):
     assert code == 0, err
     html = report.read_text()
     assert "<tr><td>—</td><td>0.0</td>" in html and html.count("data:image/png;base64,") == 2
+
+
+def _json_results(ses, responses):
+    import json
+
+    return json.dumps({"format": "lbscene.visual_results", "session": ses.model.name, "responses": responses})
+
+
+def _response(t, score=4.0, **kw):
+    return {"observer": t["observer"], "repeat": t["repeat"], "lighting": t["lighting"],
+            "geometry": t["geometry"], "sample": t["sample"], "score": score, "response_time_ms": 900, **kw}
+
+
+@pytest.mark.parametrize("change,expected", [
+    (lambda r: r[1].update(score=True), "results.json: error LB710: responses[1]: score must be a finite number "
+                                        "(got True; expected a finite number)"),
+    (lambda r: r[1].update(score="NaN"), "results.json: error LB710: responses[1]: score must be a finite number "
+                                         "(got 'NaN'; expected a finite number)"),
+    (lambda r: r[2].update(score=[4]), "results.json: error LB710: responses[2]: score must be a finite number "
+                                       "(got [4]; expected a finite number)"),
+    (lambda r: r[0].update(repeat=1.5), "results.json: error LB710: responses[0]: repeat must be a whole number "
+                                        "≥ 1 (got 1.5; expected a whole number ≥ 1)"),
+    (lambda r: r[0].update(sample={"x": 1}), "results.json: error LB710: responses[0]: sample must be text "
+                                             "(got {'x': 1}; expected a string)"),
+    (lambda r: r[0].pop("observer"), "results.json: error LB710: responses[0]: missing field 'observer'"),
+    (lambda r: r.__setitem__(0, "O1"), "results.json:1:1: error LB710: 'responses' must be a list of objects"),
+])
+def test_visual_results_json_with_wrong_types(run_cli, tmp_path, change, expected):
+    ses = load_session(SESSION)
+    responses = [_response(t) for t in ses.trials]
+    change(responses)
+    res = tmp_path / "results.json"
+    res.write_text(_json_results(ses, responses))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert expected in err
+
+
+def test_visual_results_nan_score_encoding_and_nesting(run_cli, tmp_path):
+    ses = load_session(SESSION)
+    res = tmp_path / "results.csv"
+    rows = _all_answers(ses, lambda t: 4)
+    rows[3][8] = "nan"                      # a NaN grade used to pass as "outside the grey scale" or not at all
+    _write_results(res, rows)
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "results.csv:5:1: error LB710: score must be a finite number (got 'nan'; expected a " \
+                         "finite number)" in err
+    _write_results(res, _all_answers(ses, lambda t: 4))
+    res.write_bytes(res.read_text().encode("utf-16"))          # an odd encoding
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "results.csv: error LB003: file contains NUL bytes: binary data, not text" in err
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"format": "lbscene.visual_results", "responses": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    code, _, err = run_cli("visual-report", deep, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert "deep.json:1:" in err and "error LB015: JSON nested too deeply (expected at most 64 levels)" in err
+
+
+def test_model_delta_e_must_be_finite(run_cli, tmp_path):
+    ses = load_session(SESSION)
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(ses, lambda t: 4))
+    model = tmp_path / "model.csv"
+    model.write_text("lighting,geometry,sample,delta_e00\n" + "".join(
+        f'{lt},{g},"{s}",{"inf" if i == 1 else 1.0}\n' for i, (lt, g, s) in enumerate(ses.cases)))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, "--model-de", model, cwd=tmp_path)
+    assert code == 2 and "model.csv:3:1: error LB710: delta_e00 must be a finite number ≥ 0 (got 'inf'" in err
