@@ -59,9 +59,35 @@ def _lint_measurement_set(doc: LoadedDocument) -> list[Diagnostic]:
     return out
 
 
+def _lint_render_config(doc: LoadedDocument) -> list[Diagnostic]:
+    """The work a render configuration asks for: the pixels of one view (``LB510``)."""
+    from .limits import check_work
+
+    out = doc.model.output
+    try:
+        check_work("pixels", out.width_px * out.height_px, doc.locate("output", "width_px"),
+                   what=f"pixels of one view ({out.width_px}x{out.height_px})")
+    except LbsceneUserError as exc:
+        return exc.diagnostics
+    return []
+
+
+def _lint_visual_session(doc: LoadedDocument) -> list[Diagnostic]:
+    """A visual session as ``export-web`` and ``visual-report`` load it: the number of trials
+    (``LB510``, before they are planned), its sample documents, distinct sample names."""
+    from .visual_protocol import load_session
+
+    try:
+        load_session(doc.path, doc.refs.allowed_dirs)
+    except LbsceneUserError as exc:
+        return exc.diagnostics
+    return []
+
+
 #: kind → semantic rules run after schema validation (other modules may add theirs).
-LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {"booth": _lint_booth,
-                                                                    "measurement_set": _lint_measurement_set}
+LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {
+    "booth": _lint_booth, "measurement_set": _lint_measurement_set, "render_config": _lint_render_config,
+    "visual_session": _lint_visual_session}
 
 
 @dataclass

@@ -113,7 +113,14 @@ def load_session(path: Path, allowed_dirs=()) -> LoadedSession:
     from lbscene.schemas.sample import Sample
     from lbscene.schemas.visual_session import VisualSession
 
+    from lbscene.engine.limits import check_work
+
     doc = load_document(Path(path), VisualSession, allowed_dirs=allowed_dirs)
+    m = doc.model
+    # every trial is planned, embedded in the viewer and answered: bounded before any is made
+    check_work("trials", len(m.observers) * m.repeats * len(m.lightings) * len(m.geometries) * len(m.samples),
+               doc.locate("observers"), what=f"trials of session {m.name!r} ({len(m.observers)} observers × "
+               f"{m.repeats} repeats × {len(m.lightings) * len(m.geometries) * len(m.samples)} cases)")
     samples = []
     for i, ref in enumerate(doc.model.samples):
         sdoc = load_document(doc.resolve(ref), Sample, allowed_dirs=allowed_dirs)

@@ -113,6 +113,11 @@ def plan(measurements: Path | str, *, booth: Path | str | None = None, points: i
     """The readings that would tell the tied explanations apart (``None`` when nothing is tied)."""
     from .engine.compare import plan_for, run_compare
 
+    if isinstance(points, bool) or not isinstance(points, int):
+        raise TypeError(f"points must be an integer, not {type(points).__name__}")
+    if not 1 <= points <= 50:
+        raise LbsceneUserError.single("LB500", "points must be 1 … 50", value=str(points),
+                                      expected="a number of readings from 1 to 50 (the command's --points)")
     res = run_compare(Path(measurements), booth=booth, do_plan=False, history=False,
                       allowed_dirs=tuple(allowed_dirs))
     return plan_for(res, max_points=points)

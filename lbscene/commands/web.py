@@ -150,6 +150,11 @@ def register(app: typer.Typer) -> None:
         from lbscene.runtimes.render import parse_size
         from lbscene.runtimes.web.export import build_export, is_web_export, write_export
 
+        import math
+
+        if not (math.isfinite(max_mb) and max_mb > 0):
+            raise _err("LB500", "--max-mb must be a positive number of megabytes", value=f"{max_mb:g}",
+                       expected="a number > 0")
         wh = None
         if size is not None:
             try:
@@ -166,12 +171,18 @@ def register(app: typer.Typer) -> None:
         t0 = time.perf_counter()
         inp, _ = gather_inputs(source, lightings=lighting or (), samples=sample or (), displays=display or (),
                                size=wh, session=session, allowed_dirs=tuple(allow_path or ()))
+        # the session's trials go into the data file as they are: counted before the export's work
+        session_bytes = len(json_text(inp.session).encode()) if inp.session is not None else 0
+        if session_bytes / 1e6 > max_mb:
+            raise _err("LB701", f"the session alone would hold {session_bytes / 1e6:.0f} MB of trials",
+                       value=f"{session_bytes / 1e6:.1f} MB", expected=f"at most --max-mb {max_mb:g}",
+                       hint="fewer observers, repeats or cases per session (split the panel), or raise --max-mb")
         from lbscene.commands.console import err_console
 
         console = err_console()
         with console.status("export-web") as st:
             manifest = build_export(inp, progress=lambda m: st.update(f"export-web: {m}"))
-        mb = manifest["blob_bytes"] / 1e6
+        mb = (manifest["blob_bytes"] + session_bytes) / 1e6
         if mb > max_mb:
             raise _err("LB701", f"the export would hold {mb:.0f} MB of data", value=f"{mb:.1f} MB",
                        expected=f"at most --max-mb {max_mb:g}",

@@ -338,3 +338,36 @@ def test_model_delta_e_must_be_finite(run_cli, tmp_path):
         f'{lt},{g},"{s}",{"inf" if i == 1 else 1.0}\n' for i, (lt, g, s) in enumerate(ses.cases)))
     code, _, err = run_cli("visual-report", res, "--session", SESSION, "--model-de", model, cwd=tmp_path)
     assert code == 2 and "model.csv:3:1: error LB710: delta_e00 must be a finite number ≥ 0 (got 'inf'" in err
+
+
+def test_session_trials_are_bounded_before_they_are_planned(run_cli, tmp_path, monkeypatch):
+    # 2 observers × 2 repeats × 4 cases = 16 trials; a session of 60 000 observers (240 000 trials)
+    # wrote a 568 MB viewer: it is refused when the session is read, by every command
+    monkeypatch.setenv("LBSCENE_MAX_TRIALS", "15")
+    line = next(i for i, s in enumerate(SESSION.read_text().splitlines(), 1) if s.startswith("observers:"))
+    expected = (f"session-tube.yaml:{line + 1}:3: error LB510: trials of session 'tube-test' (2 observers × 2 repeats × "
+                "4 cases): 16 exceeds the limit of 15")
+    code, _, err = run_cli("validate-config", SESSION)
+    assert code == 2 and expected in err and "LBSCENE_MAX_TRIALS=N" in err
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(_unbounded_session(monkeypatch), lambda t: 4))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION)
+    assert code == 2 and expected in err
+
+
+def _unbounded_session(monkeypatch):
+    monkeypatch.delenv("LBSCENE_MAX_TRIALS")
+    ses = load_session(SESSION)
+    monkeypatch.setenv("LBSCENE_MAX_TRIALS", "15")
+    return ses
+
+
+def test_export_web_counts_the_session_against_max_mb(run_cli, tmp_path):
+    code, _, err = run_cli("export-web", "--session", SESSION, "--out", tmp_path / "viewer", "--max-mb", "0.001")
+    assert code == 2
+    assert "error LB701: the session alone would hold 0 MB of trials (got 0.0 MB; expected at most --max-mb 0.001)" \
+        in err
+    assert not (tmp_path / "viewer").exists()
+    code, _, err = run_cli("export-web", "--session", SESSION, "--out", tmp_path / "viewer", "--max-mb", "0")
+    assert code == 2 and "error LB500: --max-mb must be a positive number of megabytes (got 0; expected a number " \
+                         "> 0)" in err
