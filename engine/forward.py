@@ -311,10 +311,11 @@ class ForwardModel:
             raise LbsceneUserError.single("LB202", f"the booth has no lighting configuration {self.lighting!r}",
                                           value=repr(self.lighting), expected=f"one of {', '.join(ir.lighting)}")
         self.effects = dict(ir.effects if effects is None else effects)
-        unknown = [e for e in self.effects if e not in available_effects()]
+        registry = available_effects()
+        unknown = [e for e in self.effects if e not in registry]
         if unknown:
             raise LbsceneUserError.single("LB106", f"unknown effect id {unknown[0]!r}", value=repr(unknown[0]),
-                                          expected=f"one of {', '.join(available_effects())}")
+                                          expected=f"one of {', '.join(registry)}")
         for eid, p in self.effects.items():
             if p is not None and not isinstance(p, dict):
                 raise TypeError(f"effects[{eid!r}] must be a dict of parameters (or None), not {type(p).__name__}")
