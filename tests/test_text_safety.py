@@ -174,3 +174,22 @@ def test_visual_report_on_an_ascii_console(tmp_path):
                        capture_output=True, cwd=tmp_path, env=env, timeout=120)
     assert p.returncode == 0, p.stderr
     assert b"\\u0394V" in p.stdout and b"\x1b" not in p.stdout       # the ΔV column, escaped
+
+
+def test_progress_descriptions_are_literal():
+    import io
+
+    from rich.console import Console
+    from rich.progress import TextColumn
+
+    from lbscene.commands.console import PlainProgress, progress
+
+    term = Console(file=io.StringIO(), force_terminal=True, width=100)
+    with progress(TextColumn("{task.description}"), console=term, transient=False) as p:
+        t = p.add_task(f"build: {HOSTILE}")               # rich raised MarkupError on "[/link]"
+        p.update(t, description=f"bake: {HOSTILE}")
+    assert f"bake: {SHOWN}" in term.file.getvalue()
+    plain = io.StringIO()
+    pp = PlainProgress(plain)
+    pp.add_task(f"render: {HOSTILE}")
+    assert plain.getvalue().endswith(f"render: {SHOWN}\n")

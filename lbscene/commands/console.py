@@ -100,7 +100,10 @@ class PlainProgress:
         line = f"{t['description']}{count}"
         if line != t.get("said"):
             t["said"] = line
-            print(f"[{time.perf_counter() - self.t0:6.1f} s] {line}", file=self.stream, flush=True)
+            from lbscene.engine.textsafe import printable
+
+            print(f"[{time.perf_counter() - self.t0:6.1f} s] {printable(line, newlines=False)}", file=self.stream,
+                  flush=True)
 
     def add_task(self, description: str, total=None, **_) -> int:
         tid = len(self.tasks)
@@ -124,10 +127,29 @@ class PlainProgress:
 
 
 def progress(*columns, console=None, transient: bool = True, disable: bool = False):
-    """A rich progress display on a terminal, plain lines otherwise, nothing when ``disable``."""
-    from rich.progress import Progress
+    """A rich progress display on a terminal, plain lines otherwise, nothing when ``disable``.
+
+    Descriptions often hold user text (a lighting, a file): text columns render them without
+    markup, and control characters are shown as escapes either way.
+    """
+    from rich.progress import Progress, TextColumn
+
+    from lbscene.engine.textsafe import printable
 
     console = console or err_console()
     if disable or console.is_terminal:
-        return Progress(*columns, console=console, transient=transient, disable=disable)
+        for c in columns:
+            if isinstance(c, TextColumn):
+                c.markup = False
+
+        class _LiteralProgress(Progress):
+            def add_task(self, description, *a, **kw):
+                return super().add_task(printable(description, newlines=False), *a, **kw)
+
+            def update(self, task_id, *a, description=None, **kw):
+                if description is not None:
+                    description = printable(description, newlines=False)
+                return super().update(task_id, *a, description=description, **kw)
+
+        return _LiteralProgress(*columns, console=console, transient=transient, disable=disable)
     return PlainProgress(console.file)
