@@ -9,6 +9,7 @@ lamp output specs into absolute spectral intensity.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Iterable
 
@@ -178,6 +179,9 @@ class ObjScan:
         self.vertices, self.vertex_lines, self.faces, self.face_lines = vertices, vertex_lines, faces, face_lines
 
 
+_TOKEN = re.compile(r"\S+")
+
+
 def _obj_scan(raw: bytes, display: str) -> ObjScan:
     """Read the ``v`` and ``f`` lines of an OBJ file (located errors: ``LB203``, ``LB510``).
 
@@ -206,14 +210,14 @@ def _obj_scan(raw: bytes, display: str) -> ObjScan:
         s = line.strip()
         if not s or s[0] not in "vf" or (len(s) > 1 and not s[1].isspace()):
             continue                       # comments, vt/vn/vp, o/g/s/usemtl/mtllib, lines …
-        parts = s.split()
-        col = line.index(parts[0]) + 1
+        toks = [(m.group(0), m.start() + 1) for m in _TOKEN.finditer(line)]   # (token, column)
+        parts = [t for t, _ in toks]
+        col = toks[0][1]
         if parts[0] == "v":
             if len(parts) < 4:
                 raise err("vertex needs three coordinates", no, col, value=repr(s[:80]), expected="v x y z")
             xyz = []
-            for tok in parts[1:4]:
-                c = line.index(tok, col) + 1
+            for tok, c in toks[1:4]:
                 try:
                     x = float(tok)
                 except ValueError:
@@ -228,14 +232,13 @@ def _obj_scan(raw: bytes, display: str) -> ObjScan:
             if len(parts) < 4:
                 raise err("face needs at least three corners", no, col, value=repr(s[:80]), expected="f i j k …")
             idx = []
-            for tok in parts[1:]:
+            for tok, c in toks[1:]:
                 head = tok.split("/", 1)[0]
                 try:
                     i = int(head)
                 except ValueError:
-                    raise err("face corner is not a vertex index", no, line.index(tok) + 1,
-                              value=repr(tok[:40]), expected="a vertex number (1 …, or negative: relative)") \
-                        from None
+                    raise err("face corner is not a vertex index", no, c, value=repr(tok[:40]),
+                              expected="a vertex number (1 …, or negative: relative)") from None
                 if i < 0:
                     i = len(verts) + i + 1          # relative to the vertices read so far
                 idx.append(i - 1)
