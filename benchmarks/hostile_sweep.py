@@ -116,7 +116,43 @@ def workspace(tmp: Path) -> dict:
     shutil.copytree(booth, atsample)
     (atsample / "booth.yaml").write_text(text.replace("position_mm: [0, 0, 700]", "position_mm: [0, 0, 0]"))
     ws["lamp_at_sample"] = atsample
-    ws["protected"] = [booth, m, cfg, user, ws["user_file"], many, atsample, big]
+    # files whose content is hostile: IES with NaN candela, a mesh of 10⁶ faces, a name with markup,
+    # mathtext and an escape sequence, a path too long, a loop of symbolic links, a default session
+    ies = tmp / "ies-nan"
+    shutil.copytree(booth, ies)
+    (ies / "booth.yaml").write_text(text.replace("    output: {type: peak_intensity_cd, value_cd: 1000}\n",
+                                                 "    output: {type: peak_intensity_cd, value_cd: 1000}\n"
+                                                 "    profile: {type: ies, path: lamp.ies}\n"))
+    (ies / "lamp.ies").write_text("IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3 1 1 2 0 0 0\n1 1 0\n0 45 90\n0\n"
+                                  "100 nan 0\n")
+    ws["ies_nan"] = ies
+    mesh = tmp / "mesh-1e6"
+    shutil.copytree(booth, mesh)
+    (mesh / "booth.yaml").write_text(text + "geometry_files:\n  - {type: obj, id: m, path: m.obj, material: grey}\n")
+    (mesh / "m.obj").write_text("v 0 0 100\nv 100 0 100\nv 0 100 100\n" + "f 1 2 3\n" * 1_000_000)
+    ws["mesh_1e6"] = mesh
+    hostile = m / "[bold]$\\frac{$\x1b[2J.yaml"
+    hostile.write_text((m / "meas.yaml").read_text().replace("name: sweep", 'name: "[/link] \\e[2J $\\\\frac{$"'))
+    ws["hostile_meas"] = hostile
+    ws["long_name"] = tmp / ("a" * 300 + ".yaml")
+    (tmp / "loop1.yaml").symlink_to(tmp / "loop2.yaml")
+    (tmp / "loop2.yaml").symlink_to(tmp / "loop1.yaml")
+    ws["loop"] = tmp / "loop1.yaml"
+    vis = tmp / "visual"
+    vis.mkdir()
+    for n in ("sample-gonio.yaml", "sample-grey.yaml", "tube-gonio.yaml"):
+        shutil.copy(REPO / "tests" / "web" / "data" / n, vis / n)
+    (vis / "session.yaml").write_text((REPO / "tests" / "web" / "data" / "session-tube.yaml").read_text()
+                                      .replace("repeats: 2\n", ""))
+    from lbscene.engine.visual_protocol import load_session
+
+    ses = load_session(vis / "session.yaml")
+    (vis / "results.csv").write_text("session,observer,repeat,order,lighting,geometry,sample,display,score,"
+                                     "response_time_ms\n" + "".join(
+        f'{ses.model.name},{t["observer"]},{t["repeat"]},{t["order"]},{t["lighting"]},{t["geometry"]},'
+        f'"{t["sample"]}",sRGB,4,1000\n' for t in ses.trials))
+    ws["session"], ws["results"] = vis / "session.yaml", vis / "results.csv"
+    ws["protected"] = [booth, m, cfg, user, ws["user_file"], many, atsample, big, ies, mesh, vis]
     return ws
 
 
@@ -170,6 +206,15 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
         ("render --size 0x0", ["render", cfg, "--no-input", "--size", "0x0"], {}),
         ("plan --points 0", ["plan", meas, "--points", "0"], {}),
         ("history of a fifo", ["history", ws["fifo"]], {}),
+        ("validate IES with NaN candela", ["validate-config", ws["ies_nan"]], {}),
+        ("validate a mesh of 10^6 faces", ["validate-config", ws["mesh_1e6"]], {}),
+        ("compare a name with markup and escapes", ["compare", ws["hostile_meas"], "--no-history"], {}),
+        ("compare, ASCII console", ["compare", ws["hostile_meas"], "--no-history", "--no-diagnose"],
+         {"PYTHONIOENCODING": "ascii"}),
+        ("validate a name too long", ["validate-config", ws["long_name"]], {}),
+        ("compare a symlink loop", ["compare", ws["loop"]], {}),
+        ("render --size 8192x8192", ["render", cfg, "--no-input", "--size", "8192x8192"], {}),
+        ("visual-report, default session", ["visual-report", ws["results"], "--session", ws["session"]], {}),
     ]
     return out
 
