@@ -161,14 +161,17 @@ def run_tasks(tasks: list[BakeTask], *, force: bool = False, progress: bool = Tr
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
                                TimeElapsedColumn, TimeRemainingColumn)
 
+    from lbscene.engine.files.textsafe import printable
+
     console = console or Console(stderr=True)
     results: list[TaskResult] = []
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+    # labels name lightings and jobs as the booth file writes them: shown literally, never as markup
+    with Progress(SpinnerColumn(), TextColumn("{task.description}", markup=False), BarColumn(),
                   MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn(),
                   console=console, transient=True, disable=not progress) as prog:
         overall = prog.add_task("bake", total=len(tasks))
         for i, task in enumerate(tasks):
-            label = task.label or task.job.name
+            label = printable(task.label or task.job.name, newlines=False)
             if not force:
                 m = is_cached(task.job, task.out_dir)
                 if m is not None:

@@ -760,14 +760,18 @@ def load_job(path: Path | str) -> BakeJob:
 
     from lbscene.engine.files.diagnostics import LbsceneUserError
 
-    from lbscene.engine.files.yamlio import read_text_bounded
+    from lbscene.engine.files.yamlio import parse_json_text, read_text_bounded
+
+    from lbscene.engine.files.diagnostics import Diagnostic
 
     p = Path(path)
+    text = read_text_bounded(p, str(p), 256 * 1024 * 1024)
     try:
-        data = json.loads(read_text_bounded(p, str(p), 256 * 1024 * 1024))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise LbsceneUserError.single("LB602", f"not a bake job: {exc}", str(p),
-                                      expected="a JSON bake job") from None
+        data = parse_json_text(text, str(p))         # syntax and nesting depth, located
+    except LbsceneUserError as exc:
+        d = exc.diagnostics[0]
+        raise LbsceneUserError(Diagnostic("LB602", f"not a bake job: {d.message}", d.location,
+                                          expected="a JSON bake job")) from None
     if not isinstance(data, dict) or data.get("kind") != JOB_KIND:
         raise LbsceneUserError.single("LB602", "not a bake job", str(p),
                                       value=repr(data.get("kind")) if isinstance(data, dict) else None,

@@ -23,7 +23,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     from lbscene.engine.scene.build import build_booth
-    from lbscene.engine.scene.validate import validate_paths
+    from lbscene.engine.conformance.validate import validate_paths
     from lbscene.engine.files.yamlio import load_yaml_file
 
     import colour  # noqa: F401  (import cost is paid once, not per booth: measure steady state)

@@ -321,6 +321,7 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
         ("render --size 0x0", ["render", cfg, "--no-input", "--size", "0x0"], {}),
         ("plan --points 0", ["plan", meas, "--points", "0"], {}),
         ("history of a fifo", ["history", ws["fifo"]], {}),
+        ("compare a symlink loop", ["compare", ws["loop"]], {}),
     ]
     return [(*c, {}) for c in out] + hostile_cases(ws, quick)
 

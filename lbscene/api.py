@@ -79,9 +79,9 @@ def compile_booth(path: Path | str, *, allowed_dirs: Iterable[Path] = ()):
 
 def validate(*paths: Path | str, allowed_dirs: Iterable[Path] = ()):
     """Check files and folders as ``validate-config`` does; returns the
-    :class:`lbscene.engine.scene.validate.ValidationReport` (``.files``, ``.diagnostics``: errors and
+    :class:`lbscene.engine.conformance.validate.ValidationReport` (``.files``, ``.diagnostics``: errors and
     warnings, never raised)."""
-    from .engine.scene.validate import validate_paths
+    from .engine.conformance.validate import validate_paths
 
     return validate_paths([Path(p) for p in paths], allowed_dirs=tuple(Path(d) for d in allowed_dirs))
 
@@ -118,6 +118,11 @@ def plan(measurements: Path | str, *, booth: Path | str | None = None, points: i
     """The readings that would tell the tied explanations apart (``None`` when nothing is tied)."""
     from .engine.loop.compare import plan_for, run_compare
 
+    if isinstance(points, bool) or not isinstance(points, int):
+        raise TypeError(f"points must be an integer, not {type(points).__name__}")
+    if not 1 <= points <= 50:
+        raise LbsceneUserError.single("LB500", "points must be 1 … 50", value=str(points),
+                                      expected="a number of readings from 1 to 50 (the command's --points)")
     res = run_compare(Path(measurements), booth=booth, do_plan=False, history=False,
                       allowed_dirs=tuple(allowed_dirs))
     return plan_for(res, max_points=points)
@@ -153,10 +158,10 @@ def write_report(result, out: Path | str) -> Path:
 
     Parameters
     ----------
-    result : lbscene.engine.compare.CompareResult
+    result : lbscene.engine.loop.compare.CompareResult
         What :func:`compare` returned.
     out : path or str
-        The HTML file.  The output policy of :mod:`lbscene.engine.outputs` applies: an existing
+        The HTML file.  The output policy of :mod:`lbscene.engine.files.outputs` applies: an existing
         file is replaced only if lbscene wrote it, never one of the run's inputs.
 
     Returns
@@ -382,7 +387,7 @@ def conformance(booth: Path | str, *, lightings: Iterable[str] | None = None,
         A measurement set of the booth; its lighting is judged from the data too.
     report : path or str, optional
         Also write the self-contained HTML report there (the output policy of
-        :mod:`lbscene.engine.outputs` applies: an existing file is replaced only if lbscene
+        :mod:`lbscene.engine.files.outputs` applies: an existing file is replaced only if lbscene
         wrote it).
     grid : (int, int)
         Points along x and y of the viewing-area grid.

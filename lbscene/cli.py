@@ -64,7 +64,7 @@ def print_diagnostics(diags, *, stream=None) -> None:
     """Print diagnostics, one per line (plain text: they are meant to be grepped)."""
     stream = stream or sys.stderr
     for d in diags:
-        print(d.format(), file=stream)
+        print(d.format(), file=stream)   # Diagnostic.format shows control characters as escapes
 
 
 def _wants_json(argv: list[str]) -> bool:
@@ -77,10 +77,22 @@ def _wants_json(argv: list[str]) -> bool:
 
 def _json_errors(diags, code: int = 2) -> None:
     """Errors under ``--format json``: one JSON object on stdout (nothing else to parse)."""
-    import json
+    from lbscene.engine.files.textsafe import json_text
 
-    print(json.dumps({"ok": False, "exit_code": code, "errors": [d.to_json() for d in diags]},
-                     indent=2, ensure_ascii=False))
+    print(json_text({"ok": False, "exit_code": code, "errors": [d.to_json() for d in diags]}, indent=2))
+
+
+def _tolerant_streams() -> None:
+    """Characters the console's encoding cannot show are written as escapes (``\\u0394``)
+    instead of raising: ``PYTHONIOENCODING=ascii`` or a C locale must not crash a command."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is None or (getattr(stream, "errors", None) or "strict") != "strict":
+            continue
+        try:
+            reconfigure(errors="backslashreplace")
+        except (ValueError, OSError):   # a detached or closed stream: leave it
+            pass
 
 
 def _tolerant_streams() -> None:
@@ -102,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     ``{"ok": false, "exit_code": 2, "errors": [{code, message, location, …}]}``, instead of text on
     stderr.
     """
+    _tolerant_streams()
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json = _wants_json(argv)
     _tolerant_streams()
@@ -127,6 +140,22 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:
+        # the last net under the commands' own checks: a path the system refuses (a name too long,
+        # a loop of symbolic links, a full disk) is a located error, never a traceback
+        if exc.filename is None:
+            raise
+        from lbscene.engine.files.diagnostics import Diagnostic, SourceLocation
+
+        shown = str(exc.filename)
+        shown = shown if len(shown) <= 120 else shown[:60] + "…" + shown[-40:]
+        d = Diagnostic("LB013", f"cannot use the path: {exc.strerror or exc}", SourceLocation(shown))
+        if as_json:
+            _json_errors([d])
+        else:
+            print_diagnostics([d])
+            print("1 error", file=sys.stderr)
+        return 2
     except Exception as exc:  # click usage errors
         import click
 

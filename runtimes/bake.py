@@ -18,7 +18,6 @@ Units as the manifest states (W·sr⁻¹·m⁻²·nm⁻¹ and W·m⁻²·nm⁻¹
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -145,12 +144,23 @@ class BakeProducts:
                 "floor_irradiance_map": self.floor_irradiance is not None, "notes": self.notes}
 
 
+#: Largest bake manifest or points file read (a final bake's manifest is a few kB).
+MAX_MANIFEST_BYTES = 64 * 1024 * 1024
+
+
 def load_bake(folder: Path, *, lamps_turn_with_platform: bool = False, views: int = 1) -> BakeProducts:
     """Read a bake folder (manifest + EXR products) for the runtime."""
     from lbscene.bakers.products import read_product
 
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.files.yamlio import load_json_bounded
+
     folder = Path(folder)
-    m = json.loads((folder / MANIFEST).read_text())
+    # bounded, with its nesting bounded too: a damaged manifest is a located error, not a traceback
+    m = load_json_bounded(folder / MANIFEST, str(folder / MANIFEST), MAX_MANIFEST_BYTES)
+    if not isinstance(m, dict) or not isinstance(m.get("products", {}), dict):
+        raise LbsceneUserError.single("LB602", "bake manifest is not an object with products", str(folder / MANIFEST),
+                                      expected="the manifest.json lbscene bake writes")
     out = BakeProducts(folder=folder, manifest=m)
     for pid, e in sorted(m.get("products", {}).items()):
         files = e.get("files") or [f"{pid}.exr"]
@@ -161,7 +171,8 @@ def load_bake(folder: Path, *, lamps_turn_with_platform: bool = False, views: in
         elif e.get("type") == "irradiance_points" and any(
                 x.get("direct_product") == pid for x in m.get("products", {}).values()):
             data, _ = read_product(exr)
-            meta = json.loads((folder / f"{pid}.points.json").read_text())
+            pj = folder / f"{pid}.points.json"
+            meta = load_json_bounded(pj, str(pj), MAX_MANIFEST_BYTES)
             nrm = np.array([[p["nx"], p["ny"], p["nz"]] for p in meta["points"]], float)
             nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
             out.direct[pid] = (nrm, data.reshape(len(nrm), -1).astype(float))
@@ -193,10 +204,13 @@ def find_bakes(search_dirs, ir, lighting: str) -> tuple[Path | None, str]:
             continue
         cands = [d / MANIFEST] if (d / MANIFEST).is_file() else []
         cands += sorted(d.glob(f"**/{MANIFEST}"))
+        from lbscene.engine.files.diagnostics import LbsceneUserError
+        from lbscene.engine.files.yamlio import load_json_bounded
+
         for mf in cands:
             try:
-                m = json.loads(mf.read_text())
-            except (OSError, ValueError):
+                m = load_json_bounded(mf, str(mf), MAX_MANIFEST_BYTES, is_input=False)
+            except LbsceneUserError:       # unreadable, too large, not JSON, nested too deeply
                 continue
             if not isinstance(m, dict) or "products" not in m or "job_hash" not in m:
                 continue

@@ -206,6 +206,31 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _checked_size(size) -> tuple[int, int] | None:
+    """A size given to the API or the command: ``None`` or two whole numbers of pixels, each
+    :data:`MIN_SIZE_PX` … :data:`MAX_SIZE_PX`.
+
+    Raises
+    ------
+    TypeError
+        Not a pair of integers (a wrong Python type).
+    LbsceneUserError
+        ``LB500`` for a side out of range (0, negative, above 8192).
+    """
+    if size is None:
+        return None
+    if isinstance(size, str) or not hasattr(size, "__len__") or len(size) != 2 or not all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in size):
+        raise TypeError(f"size must be (width_px, height_px), two integers; got {size!r}")
+    w, h = int(size[0]), int(size[1])
+    if not (MIN_SIZE_PX <= w <= MAX_SIZE_PX and MIN_SIZE_PX <= h <= MAX_SIZE_PX):
+        from lbscene.engine.files.diagnostics import LbsceneUserError
+
+        raise LbsceneUserError.single("LB500", f"size {w}x{h} is out of range", value=f"{w}x{h}",
+                                      expected=f"each side {MIN_SIZE_PX}..{MAX_SIZE_PX} px")
+    return w, h
+
+
 @dataclass
 class RenderJob:
     """A render configuration resolved into inputs of :class:`Renderer`."""
@@ -304,12 +329,25 @@ def prepare_from_config(config_path: Path, *, geometry: str | list[str] | None =
     from .colour_bridge import display_uniforms, srgb_display
     from .graph import build_render_graph, view_names
 
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.files.limits import check_work
+
+    size = _checked_size(size)
+    for name, value, allowed in (("diffuse", diffuse, ("auto", "baked", "analytic")),
+                                 ("adaptation", adaptation, ("cat16", "none"))):
+        if value is not None and value not in allowed:
+            raise LbsceneUserError.single("LB500", f"{name} must be one of {', '.join(allowed)}",
+                                          value=repr(value), expected=" or ".join(allowed))
     config_path = Path(config_path)
     wanted = geometry_list(geometry)
     if lighting is not None and not isinstance(lighting, str):
         raise TypeError(f"lighting must be a lighting name, got {lighting!r}")
     doc = load_document(config_path, RenderConfig, allowed_dirs=allowed_dirs)
     cfg = doc.model
+    # the pixels of one view, before anything is compiled or allocated (8192 × 8192 takes 9 GB)
+    w_px, h_px = size or (cfg.output.width_px, cfg.output.height_px)
+    check_work("pixels", w_px * h_px, None if size else doc.locate("output", "width_px"),
+               what=f"pixels of one view ({w_px}x{h_px})")
     base = config_path.resolve().parent
     booth_path = (base / cfg.booth) if not Path(cfg.booth).is_absolute() else Path(cfg.booth)
     if not booth_path.exists():

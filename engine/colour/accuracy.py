@@ -325,7 +325,15 @@ def accuracy_rows(results: list[LightingResult]) -> list[dict]:
 # --------------------------------------------------------------------------- plot
 
 def plot_per_patch(results: list[LightingResult], out_png) -> Path:
-    """Per-patch ΔE00 bar chart, one panel per lighting, written atomically (PNG)."""
+    """Per-patch ΔE00 bar chart, one panel per lighting, written atomically (PNG); lighting
+    names are drawn as written (no mathtext)."""
+    from lbscene.engine.files.textsafe import plain_text_plots
+
+    with plain_text_plots():
+        return _plot_per_patch(results, out_png)
+
+
+def _plot_per_patch(results: list[LightingResult], out_png) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,5 +1,11 @@
 """
-Booth conformance: does a booth meet the viewing standard each of its lightings names?
+Conformance: does a file meet lbscene's schemas and rules, and does a booth meet the viewing
+standard each of its lightings names?
+
+:mod:`~lbscene.engine.conformance.validate` is ``validate-config``: every kind of document
+(booths, samples, displays, measurement sets, render configs, visual sessions) checked against
+its schema and its semantic rules, which live in the layers below (this layer sits above them
+all, so it may run each kind's rules).
 
 :func:`run_conformance` judges every lighting from the forward model with the booth's
 effects (and from measurements when given): colorimetry at the sample

@@ -48,6 +48,8 @@ CODES: dict[str, str] = {
     "LB011": "path is a directory without a recognised document",
     "LB012": "not a regular file (a FIFO, device or socket is never read)",
     "LB013": "file cannot be read (permission or I/O error)",
+    "LB014": "CSV file cannot be parsed (a cell over the size bound, broken quoting)",
+    "LB015": "JSON syntax error, or nesting deeper than the bound",
     "LB100": "unknown key",
     "LB101": "wrong type",
     "LB102": "missing required key",
@@ -72,6 +74,8 @@ CODES: dict[str, str] = {
     "LB309": "a lamp reaches a receiver point or crosses a booth surface",
     "LB310": "illuminance outside ASTM D1729 / ISO 3668 / ISO 3664 recommendations",
     "LB311": "provenance marks values as estimates",
+    "LB312": "mesh face is degenerate (zero area) or its normal overflows",
+    "LB313": "mesh reaches outside the booth",
     "LB400": "measurement file: missing or unexpected column",
     "LB401": "measurement file: value is not a finite number",
     "LB402": "measurement file: negative value",
@@ -138,16 +142,25 @@ class Diagnostic:
             raise ValueError(f"unregistered diagnostic code {self.code!r}")
 
     def format(self) -> str:
-        """``file:line:col: severity CODE: message (got …; expected …)``."""
-        where = f"{self.location}: " if self.location else ""
+        """``file:line:col: severity CODE: message (got …; expected …)``.
+
+        Control characters of every part (a file or sample name may hold ``\\x1b[2J`` or a
+        newline) are shown as escapes: one diagnostic is one line, plus its hint line.
+        """
+        from .textsafe import printable
+
+        def p(x) -> str:
+            return printable(x, newlines=False)
+
+        where = f"{p(self.location)}: " if self.location else ""
         extra = []
         if self.value is not None:
-            extra.append(f"got {self.value}")
+            extra.append(f"got {p(self.value)}")
         if self.expected is not None:
-            extra.append(f"expected {self.expected}")
+            extra.append(f"expected {p(self.expected)}")
         tail = f" ({'; '.join(extra)})" if extra else ""
-        hint = f"\n    hint: {self.hint}" if self.hint else ""
-        return f"{where}{self.severity.value} {self.code}: {self.message}{tail}{hint}"
+        hint = f"\n    hint: {p(self.hint)}" if self.hint else ""
+        return f"{where}{self.severity.value} {self.code}: {p(self.message)}{tail}{hint}"
 
     def to_json(self) -> dict:
         d = asdict(self)

@@ -56,6 +56,15 @@ LIMITS: dict[str, Limit] = {
                            "memory grows with points × receivers × patches"),
     "patches": Limit("LBSCENE_MAX_PATCHES", 6000, "inter-reflection patches (booth interior and meshes)",
                      "form factors take patches² × 8 bytes"),
+    "pixels": Limit("LBSCENE_MAX_PIXELS", 4096 * 4096, "pixels of one rendered view (width × height)",
+                    "about 136 bytes of memory each while it renders: 8192 × 8192 takes 9 GB"),
+    "trials": Limit("LBSCENE_MAX_TRIALS", 100_000,
+                    "trials of a visual session (observers × repeats × lightings × geometries × samples)",
+                    "about 100 bytes each in the viewer's data and a row of the results"),
+    "mesh_triangles": Limit("LBSCENE_MAX_MESH_TRIANGLES", 20000,
+                            "mesh triangles of one geometry file (a polygon of n corners counts n − 2)",
+                            "each triangle is two inter-reflection patches and a visibility test at "
+                            "every receiver"),
 }
 
 _MAX_RAISED = 10 ** 9

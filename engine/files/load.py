@@ -57,7 +57,7 @@ def display_path(path: Path) -> str:
     """Path as shown in messages: relative to the working directory when inside it."""
     try:
         return str(path.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
+    except (ValueError, OSError, RuntimeError):   # outside the cwd; a name too long; a link loop
         return str(path)
 
 

@@ -44,6 +44,11 @@ __all__ = [
     "load_yaml_text",
     "read_text_bounded",
     "read_bytes_bounded",
+    "csv_rows",
+    "MAX_CSV_CELL_CHARS",
+    "parse_json_text",
+    "load_json_bounded",
+    "path_kind",
 ]
 
 #: Largest YAML document accepted (booth files are a few kB).
@@ -100,6 +105,37 @@ class YamlDocument:
         return self.positions.file
 
 
+def path_kind(path, display: str | None = None) -> str:
+    """``'file'``, ``'dir'``, ``'missing'`` or ``'other'`` (FIFO, device, socket) for a path given by
+    the user, following symbolic links.
+
+    Where the path cannot even be looked at — a name longer than the file system allows
+    (``ENAMETOOLONG``), a loop of symbolic links (``ELOOP``), a folder without permission — the
+    answer is the located ``LB013``, never ``OSError`` (``Path.is_dir`` raises on a long name and
+    calls a loop "missing").
+    """
+    import errno
+    import os
+    import stat as _stat
+
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return "missing"
+    except OSError as exc:
+        shown = display or str(path)
+        if len(shown) > 120:
+            shown = shown[:60] + "…" + shown[-40:]
+        what = {errno.ENAMETOOLONG: "the name is longer than the file system allows",
+                errno.ELOOP: "the path is a loop of symbolic links"}.get(exc.errno, exc.strerror or str(exc))
+        raise LbsceneUserError.single("LB013", f"cannot use the path: {what}", shown,
+                                      expected="an existing file or folder") from None
+    except ValueError:    # a NUL byte in the name
+        raise LbsceneUserError.single("LB013", "cannot use the path: it contains a NUL byte",
+                                      (display or repr(path))[:120]) from None
+    return "dir" if _stat.S_ISDIR(st.st_mode) else "file" if _stat.S_ISREG(st.st_mode) else "other"
+
+
 def read_bytes_bounded(path: Path, display: str, max_bytes: int, *, is_input: bool = True) -> bytes:
     """Read at most ``max_bytes`` of a regular file, or fail with a located diagnostic.
 
@@ -150,7 +186,116 @@ def read_bytes_bounded(path: Path, display: str, max_bytes: int, *, is_input: bo
 
 def read_text_bounded(path: Path, display: str, max_bytes: int) -> str:
     """Read a text file with a size bound and a clear error for binary data."""
-    raw = read_bytes_bounded(path, display, max_bytes)
+    return _decode_utf8(read_bytes_bounded(path, display, max_bytes), display)
+
+
+#: Largest CSV cell (characters): the csv module's own field limit (128 kB); a longer cell is
+#: refused with its line (``LB014``) instead of the module's exception.
+MAX_CSV_CELL_CHARS = 131072
+
+
+def csv_rows(text: str, display: str) -> list[tuple[int, list[str]]]:
+    """Rows of a CSV text, each with the line it starts on, or a located ``LB014``.
+
+    Cells are bounded (:data:`MAX_CSV_CELL_CHARS`); broken quoting is reported at its line.
+
+    Examples
+    --------
+    >>> csv_rows('a,b\\n1,"x\\ny"\\n2,3\\n', "t.csv")
+    [(1, ['a', 'b']), (2, ['1', 'x\\ny']), (4, ['2', '3'])]
+    """
+    import csv
+
+    reader = csv.reader(io.StringIO(text))
+    out = []
+    start = 1
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return out
+        except csv.Error as exc:
+            msg = str(exc)
+            too_big = "field larger than field limit" in msg
+            raise LbsceneUserError.single(
+                "LB014", f"a CSV cell is larger than {MAX_CSV_CELL_CHARS // 1024} kB" if too_big
+                else f"cannot parse the CSV: {msg}", display, max(reader.line_num, 1), 1,
+                expected=f"cells of at most {MAX_CSV_CELL_CHARS} characters" if too_big
+                else "comma-separated values with balanced quotes") from None
+        out.append((start, row))
+        start = reader.line_num + 1
+
+
+def _json_too_deep_at(text: str, max_depth: int) -> tuple[int, int] | None:
+    """(line, column) of the first bracket nested deeper than ``max_depth`` (strings skipped)."""
+    import re
+
+    blank = re.sub(r'"(?:[^"\\]|\\.)*"', lambda m: " " * len(m.group(0)), text)
+    depth = 0
+    for m in re.finditer(r"[\[\]{}]", blank):
+        depth += 1 if m.group(0) in "[{" else -1
+        if depth > max_depth:
+            i = m.start()
+            return text.count("\n", 0, i) + 1, i - (text.rfind("\n", 0, i) + 1) + 1
+    return None
+
+
+def _json_depth(value) -> int:
+    """Nesting depth of parsed JSON (a scalar is 0), without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, (dict, list)):
+            deepest = max(deepest, d + 1)
+            stack.extend((c, d + 1) for c in (v.values() if isinstance(v, dict) else v))
+    return deepest
+
+
+def parse_json_text(text: str, display: str, *, line: int = 0, max_depth: int = MAX_DEPTH):
+    """JSON text → value, or a located ``LB015`` (syntax, or nesting deeper than ``max_depth``).
+
+    ``line``: the line of ``text`` in its file when ``text`` is one line of it (a JSON-lines
+    history), so errors point at that line.
+
+    Examples
+    --------
+    >>> parse_json_text('{"a": [1, 2]}', "x.json")
+    {'a': [1, 2]}
+    >>> parse_json_text("[" * 100 + "]" * 100, "x.json")
+    Traceback (most recent call last):
+    ...
+    lbscene.engine.files.diagnostics.LbsceneUserError: x.json:1:65: error LB015: JSON nested too deeply (expected at most 64 levels)
+    """
+    import json
+
+    def deep() -> LbsceneUserError:
+        ln, col = _json_too_deep_at(text, max_depth) or (1, 1)
+        return LbsceneUserError.single("LB015", "JSON nested too deeply", display,
+                                       (line or 1) + ln - 1 if line else ln, col,
+                                       expected=f"at most {max_depth} levels")
+
+    try:
+        value = json.loads(text)
+    except RecursionError:
+        raise deep() from None
+    except json.JSONDecodeError as exc:
+        raise LbsceneUserError.single("LB015", f"not valid JSON: {exc.msg}", display,
+                                      line or exc.lineno, exc.colno, expected="a JSON document") from None
+    except ValueError as exc:      # e.g. a number too long to convert
+        raise LbsceneUserError.single("LB015", f"not valid JSON: {exc}", display, line or 1, 1,
+                                      expected="a JSON document") from None
+    if _json_depth(value) > max_depth:
+        raise deep()
+    return value
+
+
+def load_json_bounded(path: Path, display: str, max_bytes: int, *, is_input: bool = True):
+    """Read a JSON file (regular file, bounded size, UTF-8, bounded nesting) with located errors."""
+    raw = read_bytes_bounded(path, display, max_bytes, is_input=is_input)
+    return parse_json_text(_decode_utf8(raw, display), display)
+
+
+def _decode_utf8(raw: bytes, display: str) -> str:
     if b"\x00" in raw:
         raise LbsceneUserError.single(
             "LB003", "file contains NUL bytes: binary data, not text", display,
@@ -162,7 +307,7 @@ def read_text_bounded(path: Path, display: str, max_bytes: int) -> str:
         col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
         raise LbsceneUserError.single(
             "LB003", "file is not valid UTF-8 text", display, line, col,
-            value=f"byte 0x{raw[exc.start]:02x}", expected="UTF-8 text")
+            value=f"byte 0x{raw[exc.start]:02x}", expected="UTF-8 text") from None
 
 
 def load_yaml_file(path: Path | str, display: str | None = None,

@@ -105,22 +105,55 @@ class Term:
 
 
 def as_receivers(points, normals=None, meter=None):
-    """Normalise receiver arguments: points (M,3), unit normals (M,3), meter mask (M,)."""
-    P = np.atleast_2d(np.asarray(points, float))
+    """Normalise receiver arguments: points (M,3), unit normals (M,3), meter mask (M,).
+
+    Points given as (M, 2) lie on the floor (z = 0).  What a caller of the public API can get
+    wrong is a :class:`LbsceneUserError` (``LB104``: a shape other than (M, 2) or (M, 3), a
+    coordinate or normal that is not finite, a zero normal, normals not one per point), or a
+    ``TypeError`` for values that are not numbers.
+    """
+    P = np.atleast_2d(_numbers(points, "points"))
+    if P.size == 0:
+        P = np.zeros((0, 3))
+    if P.ndim != 2 or P.shape[1] not in (2, 3):
+        raise _receiver_error(f"points must be an (M, 3) array of millimetres, got shape {P.shape}")
     if P.shape[1] == 2:
         P = np.c_[P, np.zeros(len(P))]
+    if not np.isfinite(P).all():
+        raise _receiver_error("points must be finite (no NaN or infinity)")
     if normals is None:
         N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
     else:
-        N = np.atleast_2d(np.asarray(normals, float))
+        N = np.atleast_2d(_numbers(normals, "normals"))
         if N.shape[0] == 1 and len(P) > 1:
             N = np.repeat(N, len(P), axis=0)
-        N = N / np.linalg.norm(N, axis=1, keepdims=True)
+        if N.shape != P.shape:
+            raise _receiver_error(f"normals must be one (x, y, z) per point: shape {N.shape} for {len(P)} points")
+        length = np.linalg.norm(N, axis=1, keepdims=True)
+        if not (np.isfinite(length).all() and (length > 0).all()):
+            raise _receiver_error("normals must be finite and non-zero")
+        N = N / length
     if meter is None:
         m = np.ones(len(P), bool)
     else:
         m = np.broadcast_to(np.asarray(meter, bool), (len(P),)).copy()
     return P, N, m
+
+
+def _numbers(values, what: str) -> np.ndarray:
+    """``values`` as a float array; a ``TypeError`` when they are not numbers (a string, None …)."""
+    if isinstance(values, (str, bytes)) or values is None:
+        raise TypeError(f"{what} must be numbers (an array of coordinates), not {type(values).__name__}")
+    try:
+        return np.asarray(values, float)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{what} must be numbers (an array of coordinates): {exc}") from None
+
+
+def _receiver_error(message: str):
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+
+    return LbsceneUserError.single("LB104", message, expected="points (M, 3) in mm and unit normals (M, 3)")
 
 
 _BLAS = None
@@ -255,13 +288,34 @@ class ForwardModel:
     def __init__(self, ir, lighting: str | None = None, *, effects: dict | None = None,
                  lamp_overrides: dict | None = None, options: ForwardOptions | None = None,
                  cache: dict | None = None):
-        from lbscene.engine.light.effects.registry import get_effect
-
+        from lbscene.engine.files.diagnostics import LbsceneUserError
+        from lbscene.engine.light.effects.registry import available_effects, get_effect
+        # a compiled booth (the scene layer's SceneIR, above this one: recognised by its fields)
+        if not all(hasattr(ir, a) for a in ("lighting", "lamps", "content_hash", "interior")):
+            raise TypeError(f"ForwardModel needs a compiled booth (SceneIR, from lbscene.compile_booth), "
+                            f"not {type(ir).__name__}")
         self.ir = ir
         self.lighting = lighting or next(iter(ir.lighting))
         if self.lighting not in ir.lighting:
-            raise KeyError(f"unknown lighting {self.lighting!r}")
+            raise LbsceneUserError.single("LB202", f"the booth has no lighting configuration {self.lighting!r}",
+                                          value=repr(self.lighting), expected=f"one of {', '.join(ir.lighting)}")
         self.effects = dict(ir.effects if effects is None else effects)
+        registry = available_effects()
+        unknown = [e for e in self.effects if e not in registry]
+        if unknown:
+            raise LbsceneUserError.single("LB106", f"unknown effect id {unknown[0]!r}", value=repr(unknown[0]),
+                                          expected=f"one of {', '.join(registry)}")
+        for eid, p in self.effects.items():
+            if p is not None and not isinstance(p, dict):
+                raise TypeError(f"effects[{eid!r}] must be a dict of parameters (or None), not {type(p).__name__}")
+            try:
+                effect_params(get_effect(eid), p)
+            except ValueError as exc:          # pydantic's ValidationError
+                err = exc.errors()[0] if hasattr(exc, "errors") else {"loc": (), "msg": str(exc)}
+                where = ".".join(str(x) for x in err["loc"])
+                raise LbsceneUserError.single(
+                    "LB104", f"effects[{eid!r}]{'.' + where if where else ''}: {err['msg']}",
+                    value=repr(p)[:80], expected=f"the parameters of effect {eid!r} (lbscene effects)") from None
         self.options = options or ForwardOptions()
         self.ctx = ForwardContext(ir, self.lighting, self.effects, dict(lamp_overrides or {}),
                                   self.options, cache if cache is not None else {})

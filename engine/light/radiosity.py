@@ -643,12 +643,13 @@ class RadiosityTransport:
             return m
         from pydantic import ValidationError
 
+        from lbscene.engine.files.diagnostics import LbsceneUserError
         from .forward import ForwardModel
 
         try:
             return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=opts,
                                 cache=m.ctx.cache)
-        except ValidationError:         # rounded past a parameter's bound: exact, then
+        except (ValidationError, LbsceneUserError):   # rounded past a parameter's bound: exact, then
             return ForwardModel(m.ir, m.lighting, effects=m.effects, lamp_overrides=m.ctx.lamp_overrides,
                                 options=opts, cache=m.ctx.cache)
 

@@ -15,8 +15,6 @@ percent reflectances (LB406), too few rows (LB407).
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
@@ -27,7 +25,7 @@ from lbscene.engine.files.diagnostics import Diagnostic, DiagnosticBag, LbsceneU
 from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM
 
 __all__ = ["IlluminanceData", "TileData", "Measurements", "load_measurements",
-           "read_illuminance_csv", "ILLUMINANCE_COLUMNS", "check_against_prediction"]
+           "read_illuminance_csv", "ILLUMINANCE_COLUMNS", "check_against_prediction", "likely_causes"]
 
 ILLUMINANCE_COLUMNS = ("x_mm", "y_mm", "z_mm", "illuminance_lx", "orientation", "normal_x",
                        "normal_y", "normal_z", "label")
@@ -136,7 +134,9 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
     def err(code, msg, line=0, col=0, **kw):
         diags.append(Diagnostic(code, msg, SourceLocation(display, line, col), **kw))
 
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))
+    from lbscene.engine.files.yamlio import csv_rows
+
+    rows = [(i, r) for i, r in csv_rows(text, display)
             if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     empty = IlluminanceData(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), [], np.zeros(0, int), [])
     if not rows:
@@ -278,8 +278,11 @@ def _tile_column(spec, resolve):
     from lbscene.engine.files.load import display_path
     from lbscene.engine.files.yamlio import read_text_bounded
 
-    text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), 16 * 1024 * 1024)
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
+    from lbscene.engine.files.yamlio import csv_rows
+
+    shown = display_path(resolve(spec.path))
+    text = read_text_bounded(resolve(spec.path), shown, 16 * 1024 * 1024)
+    rows = [r for _, r in csv_rows(text, shown) if r and not r[0].lstrip().startswith("#")]
     if rows and "radiance" in [c.strip() for c in rows[0]]:
         return spec.model_copy(update={"column": "radiance"})
     return spec
@@ -296,8 +299,16 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
     from lbscene.engine.spectra.evaluate import evaluate_spectrum
     from lbscene.schemas.measurement import MeasurementSet
 
+    from lbscene.engine.scene.compile import compile_booth, find_booth_file
+    from lbscene.engine.scene.ir import IRSpectrum
+    from lbscene.engine.files.load import display_path, load_document
+    from lbscene.engine.spectra.evaluate import evaluate_spectrum
+
+    from lbscene.engine.files.yamlio import path_kind
+
     path = Path(path)
-    if path.is_dir():
+    kind = path_kind(path)
+    if kind == "dir":
         cands = sorted(path.glob("*.yaml"))
         from lbscene.engine.files.yamlio import read_bytes_bounded
 
@@ -314,7 +325,7 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                                           "folder", display_path(path),
                                           expected="a measurement-set YAML file (kind: measurement_set)")
         path = ms[0]
-    if not path.exists():
+    elif kind == "missing":
         raise LbsceneUserError.single("LB010", "file not found", str(path))
     doc = load_document(path, MeasurementSet, allowed_dirs=allowed_dirs)
     m: MeasurementSet = doc.model
@@ -438,9 +449,88 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                         model_uncertainty_percent=m.model_uncertainty_percent)
 
 
+#: A lamp's filter that lets through less than this share of the lamp's visible light (V(λ)-weighted)
+#: is named as the likely cause of readings far above the model.
+OPAQUE_FILTER_SHARE = 0.01
+
+
+def _lamp_segment(lamp) -> tuple[np.ndarray, np.ndarray, float]:
+    """Ends of a lamp's axis segment (a point for bulbs and points) and the radius of its body (mm)."""
+    kind = getattr(lamp, "kind", None) or lamp.type        # an IR lamp or a booth file's lamp
+    c = np.asarray(lamp.position_mm, float)
+    ax = np.asarray(lamp.axis, float)
+    half = lamp.length_mm / 2 if kind in ("tube", "panel") else 0.0
+    body = max(float(lamp.radius_mm), 0.0) if kind != "panel" else 0.0
+    return c - ax * half, c + ax * half, body
+
+
+def likely_causes(meas: Measurements, ratio: float) -> list[str]:
+    """Why the readings are ``ratio`` × the model's prediction, from the data, most specific first.
+
+    * readings at points inside a lamp's body (the model divides by a distance of ~0 there);
+    * sensors facing away from every lamp that is on (``orientation: down`` on the floor reads
+      light from below the floor: nothing), the orientation sign against the lamps;
+    * a filter, modelled (``spectral_filter``), that lets through less than
+      :data:`OPAQUE_FILTER_SHARE` of its lamp's visible light;
+    * otherwise the unit of the readings and the lamp output.
+
+    Returns
+    -------
+    list of str
+        One sentence per cause found (the unit one when no other is).
+    """
+    from lbscene.engine.scene.lint import LAMP_CLEARANCE_MM, _segment_distance_mm
+    from lbscene.engine.spectra.evaluate import luminous_efficacy_sum
+
+    ill, ir = meas.illuminance, meas.ir
+    lamps = [lp for lp, _ in ir.lamps_on(meas.lighting)]
+    out: list[str] = []
+    inside = []
+    for k, p in enumerate(ill.points_mm):
+        for lp in lamps:
+            a, b, body = _lamp_segment(lp)
+            if _segment_distance_mm(p, a, b) - body < LAMP_CLEARANCE_MM:
+                inside.append((k, lp.id))
+                break
+    if inside:
+        k, lid = inside[0]
+        out.append(f"{len(inside)} reading(s) lie inside the body of a lamp (first: {ill.files[k]}:{ill.lines[k]} in "
+                   f"lamp '{lid}'): is z_mm in another unit, or the point mistyped?")
+    flipped, level = [], []        # facing away from every lamp: turned the other way they would see one
+    for k, (p, n) in enumerate(zip(ill.points_mm, ill.normals)):
+        dots = np.array([float(n @ (q - p)) for lp in lamps for q in _lamp_segment(lp)[:2]])
+        if dots.size and np.all(dots <= 0.0):
+            (flipped if np.any(dots < 0.0) else level).append(k)
+    if ratio > 1 and len(flipped) * 2 >= len(ill):
+        k = flipped[0]
+        out.append(f"{len(flipped)} of {len(ill)} readings face away from every lamp of lighting '{meas.lighting}' "
+                   f"(sensor facing {ill.orientation_labels()[k]} at {ill.files[k]}:{ill.lines[k]}): check the "
+                   "orientation column or the file's orientation: (a meter on the floor faces up)")
+    elif ratio > 1 and len(flipped) + len(level) > 0 and (len(flipped) + len(level)) * 2 >= len(ill):
+        k = (level or flipped)[0]
+        out.append(f"{len(flipped) + len(level)} of {len(ill)} readings are level with or beyond every lamp of "
+                   f"lighting '{meas.lighting}' (z = {ill.points_mm[k][2]:g} mm at {ill.files[k]}:{ill.lines[k]}): "
+                   "check z_mm (millimetres above the floor)")
+    if ratio > 1:
+        for lp in lamps:
+            if not lp.filter:
+                continue
+            bare = float(luminous_efficacy_sum(ir.lamp_emission_1nm(lp, with_filter=False)))
+            seen = float(luminous_efficacy_sum(ir.lamp_emission_1nm(lp)))
+            if bare > 0 and seen < OPAQUE_FILTER_SHARE * bare:
+                out.append(f"filter '{lp.filter}' of lamp '{lp.id}' lets through {seen / bare:.2g} of its visible "
+                           "light: check its transmittance (a fraction 0..1; the right column, the right file)")
+                break
+    if not out:
+        out.append("check the unit of illuminance_lx (klx? fc?) and the lamp output in the booth")
+    return out
+
+
 def check_against_prediction(meas: Measurements, predicted_lux: np.ndarray | None,
                              predicted_tile_bands: np.ndarray | None, measured_tile_bands=None) -> None:
-    """Unit mistakes that only a prediction reveals (klx readings, mW radiance): LB406."""
+    """Mistakes that only a prediction reveals: ``LB406`` when the readings are far (×500) from the
+    model, with its likely cause found in the data (:func:`likely_causes`: points inside a lamp,
+    sensors facing away from the lamps, an opaque filter, else the unit), and mW radiance."""
     diags = []
     if predicted_lux is not None and meas.illuminance is not None and len(meas.illuminance):
         ratio = float(np.median(meas.illuminance.lux / np.maximum(predicted_lux, 1e-12)))
@@ -449,7 +539,7 @@ def check_against_prediction(meas: Measurements, predicted_lux: np.ndarray | Non
             diags.append(Diagnostic(
                 "LB406", f"readings are {ratio:.3g}× the model's prediction", SourceLocation(f, 1, 1),
                 value=f"median ratio {ratio:.3g}", expected="lux, within a factor of a few of the model",
-                hint="check the unit of illuminance_lx (klx? fc?) and the lamp output in the booth"))
+                hint="; ".join(likely_causes(meas, ratio))))
     if predicted_tile_bands is not None and measured_tile_bands is not None and meas.tile is not None:
         ok = measured_tile_bands > 0
         if ok.any():

@@ -92,17 +92,28 @@ def _spectrum(res):
 
 
 def _history(res):
+    from lbscene.engine.files.diagnostics import LbsceneUserError
     from .history import plot_history, read_history
 
-    entries = read_history(res.meas.history_path)
+    try:
+        entries = read_history(res.meas.history_path)
+    except LbsceneUserError:      # a history that cannot be read has no plot; `lbscene history` says why
+        return None
     if not entries:
         return None
     return _png(plot_history(entries, title=f"history of {res.meas.path.name}"))
 
 
+def _esc(x) -> str:
+    """Text for HTML: markup escaped, control characters shown as escapes."""
+    from lbscene.engine.files.textsafe import printable
+
+    return html.escape(printable(x))
+
+
 def _table(headers, rows) -> str:
-    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    h = "".join(f"<th>{_esc(x)}</th>" for x in headers)
+    body = "".join("<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -118,11 +129,17 @@ def _f(x, nd=3):
 
 
 def render_report(res) -> str:
-    """The report as an HTML string."""
+    """The report as an HTML string (its plots draw user text as written: no mathtext)."""
+    from lbscene.engine.files.textsafe import plain_text_plots
+
+    with plain_text_plots():
+        return _render_report(res)
+
+
+def _render_report(res) -> str:
     j = res.to_json()
     d = res.diagnosis
-    def e(x) -> str:
-        return html.escape(str(x))
+    e = _esc
 
     parts = [f"<h1>{e(res.meas.name)}</h1>",
              f"<p class=meta>measurements <code>{e(str(res.meas.path))}</code> · booth "

@@ -10,12 +10,13 @@ lamp output specs into absolute spectral intensity.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Iterable
 
 import numpy as np
 
-from lbscene.engine.files.diagnostics import DiagnosticBag, LbsceneUserError
+from lbscene.engine.files.diagnostics import Diagnostic, DiagnosticBag, LbsceneUserError
 from lbscene.engine.files.load import LoadedDocument, display_path, load_document
 from lbscene.engine.spectra.bands import DEFAULT_GRID, BandGrid
 from lbscene.schemas.booth import Booth, parse_geometry_name
@@ -24,6 +25,7 @@ from .effect_params import validate_effects
 from .ir import (IR_VERSION, IRDiffuser, IRFilter, IRGeometry, IRInterior, IRLamp, IRLighting, IRMaterial,
                  IRObserver, IROccluder, IRPlatform, IRReflector, IRSpectrum, IRSurface, SceneIR)
 from .lint import lint_booth
+from .meshes import _mesh_from_obj, _meshes_from_usd, _rotation_matrix_xyz
 
 __all__ = ["BOOTH_FILENAME", "find_booth_file", "load_booth", "compile_booth", "compile_loaded"]
 
@@ -32,14 +34,17 @@ BOOTH_FILENAME = "booth.yaml"
 
 def find_booth_file(path: Path | str) -> Path:
     """A booth folder or file → its ``booth.yaml``."""
+    from lbscene.engine.files.yamlio import path_kind
+
     p = Path(path)
-    if p.is_dir():
+    kind = path_kind(p)
+    if kind == "dir":
         f = p / BOOTH_FILENAME
-        if not f.is_file():
+        if path_kind(f, display_path(f)) != "file":
             raise LbsceneUserError.single("LB011", f"no {BOOTH_FILENAME} in this folder",
                                           display_path(p), expected=f"a folder with {BOOTH_FILENAME}")
         return f
-    if not p.exists():
+    if kind == "missing":
         from lbscene.engine.files.shipped import shipped_booth, shipped_booths
 
         # a bare name that is not a path here: one of the booths shipped with lbscene
@@ -106,80 +111,6 @@ def _box_surfaces(booth: Booth) -> list[IRSurface]:
         verts, tris = _quad(*q)
         out.append(IRSurface(id=role, role=role, material=mat, vertices_mm=tuple(verts),
                              triangles=tuple(tris)))
-    return out
-
-
-def _rotation_matrix_xyz(deg) -> np.ndarray:
-    rx, ry, rz = np.radians(deg)
-    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    mx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    my = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    mz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return mz @ my @ mx
-
-
-#: Largest mesh file accepted (booth geometry is small; this bounds untrusted input).
-MAX_MESH_BYTES = 64 * 1024 * 1024
-
-
-def _check_mesh_size(path: Path, display: str) -> None:
-    """A mesh file must be a regular file within the size bound (a bounded read, not ``stat``),
-    before a mesh library opens it."""
-    from lbscene.engine.files.yamlio import read_bytes_bounded
-
-    read_bytes_bounded(path, display, MAX_MESH_BYTES)
-
-
-def _mesh_from_obj(path: Path, display: str) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
-
-    _check_mesh_size(path, display)
-    try:
-        scene_or_mesh = trimesh.load(str(path), file_type="obj", force="mesh", process=False)
-    except Exception as exc:
-        raise LbsceneUserError.single("LB203", f"cannot read OBJ file: {exc}", display,
-                                      expected="a Wavefront OBJ mesh")
-    v = np.asarray(scene_or_mesh.vertices, float)
-    f = np.asarray(scene_or_mesh.faces, np.int64)
-    if v.size == 0 or f.size == 0:
-        raise LbsceneUserError.single("LB203", "OBJ file has no faces", display,
-                                      expected="a Wavefront OBJ mesh with faces")
-    return v, f
-
-
-def _meshes_from_usd(path: Path, display: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    from pxr import Tf, Usd, UsdGeom
-
-    _check_mesh_size(path, display)
-    try:
-        stage = Usd.Stage.Open(str(path))
-    except Tf.ErrorException as exc:
-        raise LbsceneUserError.single("LB203", f"cannot open USD file: {str(exc).strip()[:300]}", display,
-                                      expected="a USD stage (.usda/.usdc/.usd)")
-    if stage is None:
-        raise LbsceneUserError.single("LB203", "cannot open USD file", display,
-                                      expected="a USD stage (.usda/.usdc/.usd)")
-    to_mm = UsdGeom.GetStageMetersPerUnit(stage) * 1000.0
-    out = []
-    cache = UsdGeom.XformCache()
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdGeom.Mesh):
-            continue
-        mesh = UsdGeom.Mesh(prim)
-        pts = np.asarray(mesh.GetPointsAttr().Get() or [], float)
-        counts = list(mesh.GetFaceVertexCountsAttr().Get() or [])
-        idx = list(mesh.GetFaceVertexIndicesAttr().Get() or [])
-        if not len(pts) or not counts:
-            continue
-        gm = cache.GetLocalToWorldTransform(prim)  # Gf matrices use the row-vector convention
-        m = np.array([[gm[i][j] for j in range(4)] for i in range(4)], float)
-        pts_h = np.c_[pts, np.ones(len(pts))] @ m
-        tris, k = [], 0
-        for c in counts:
-            for j in range(1, c - 1):  # fan triangulation
-                tris.append((idx[k], idx[k + j], idx[k + j + 1]))
-            k += c
-        out.append((prim.GetName(), pts_h[:, :3] * to_mm, np.asarray(tris, np.int64)))
     return out
 
 

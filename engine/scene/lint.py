@@ -12,7 +12,10 @@ LB304  duplicate id                                                error
 LB300  lamp outside the booth interior                             error
 LB306  sample position outside the booth                           error
 LB309  lamp reaches a receiver point or crosses a surface             error
-LB510  more lamps or point sources than the work bound                error
+LB203  IES or mesh file with wrong content (located in that file)     error
+LB312  mesh face degenerate or with an overflowing normal            error
+LB313  mesh vertex outside the booth (at any platform rotation)       error
+LB510  more lamps, point sources or mesh triangles than the bound     error
 LB301  spectrum does not cover the band range (390–710 nm)         error
 LB302  reflectance/transmittance outside [0, 1]                    error
 LB307  effect parameter names something the booth lacks            error
@@ -35,6 +38,8 @@ from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 from lbscene.schemas.booth import Booth
 
 from .effect_params import validate_effects
+from .meshes import TOLERANCE_MM
+from .meshes import inside_booth as _inside
 
 __all__ = ["lint_booth", "illuminance_rules", "needs_illuminance_rules", "spectrum_coverage",
            "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
@@ -46,18 +51,6 @@ ILLUMINANCE_RANGES_LX = {
     "ISO_3664_P1": (1500.0, 2500.0),  # 2000 lx ± 500 lx
     "ISO_3664_P2": (375.0, 625.0),    # 500 lx ± 125 lx
 }
-TOLERANCE_MM = 1.0
-
-
-def _inside(p, booth: Booth, margin: float = 0.0) -> bool:
-    if booth.interior.type == "box":
-        w, d, h = booth.interior.width_mm, booth.interior.depth_mm, booth.interior.height_mm
-    else:
-        w, d, h = booth.interior.bounds_mm
-    x, y, z = p
-    t = TOLERANCE_MM
-    return (abs(x) <= w / 2 - margin + t and abs(y) <= d / 2 - margin + t
-            and -t + margin <= z <= h - margin + t)
 
 
 def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
@@ -68,15 +61,16 @@ def spectrum_coverage(spec, resolve) -> tuple[float, float] | None:
     if spec.type == "inline":
         return spec.wavelengths_nm[0], spec.wavelengths_nm[-1]
     if spec.type == "csv":
-        import csv
-        import io
-
-        from lbscene.engine.files.load import display_path
         from lbscene.engine.files.yamlio import read_text_bounded
         from lbscene.engine.spectra.evaluate import MAX_CSV_BYTES
 
-        text = read_text_bounded(resolve(spec.path), display_path(resolve(spec.path)), MAX_CSV_BYTES)
-        rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
+        from lbscene.engine.files.load import display_path
+
+        from lbscene.engine.files.yamlio import csv_rows
+
+        shown = display_path(resolve(spec.path))
+        text = read_text_bounded(resolve(spec.path), shown, MAX_CSV_BYTES)
+        rows = [r for _, r in csv_rows(text, shown) if r and not r[0].lstrip().startswith("#")]
         try:
             col = [c.strip() for c in rows[0]].index("wavelength_nm")
             wl = [float(r[col]) for r in rows[1:]]
@@ -198,6 +192,10 @@ def _references(doc: LoadedDocument) -> list[Diagnostic]:
                 read_ies(doc.resolve(lp.profile.path), lp.profile.path)
             except LbsceneUserError as exc:
                 diags.extend(exc.diagnostics)
+    # geometry files are opened here too: every problem of a mesh is located in its file
+    from .meshes import geometry_file_diagnostics
+
+    diags.extend(geometry_file_diagnostics(doc))
     for role, mat in booth.surfaces.model_dump().items():
         if mat is not None and mat not in mats:
             E("LB202", f"surface '{role}' uses undefined material '{mat}'", "surfaces", role,

@@ -14,8 +14,6 @@ transmittances hold their end values.
 
 from __future__ import annotations
 
-import csv
-import io
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -76,9 +74,10 @@ def _extrapolation(kind: SpectrumKind) -> str:
 def read_spectrum_csv(path: Path, display: str, column: str | None = None,
                       kind: SpectrumKind = "emission") -> np.ndarray:
     """Read a ``wavelength_nm,<value>`` CSV onto the 1 nm grid, with located errors."""
+    from lbscene.engine.files.yamlio import csv_rows
+
     text = read_text_bounded(path, display, MAX_CSV_BYTES)
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [(i + 1, r) for i, r in enumerate(rows) if r and not r[0].lstrip().startswith("#")]
+    rows = [(i, r) for i, r in csv_rows(text, display) if r and not r[0].lstrip().startswith("#")]
     if not rows:
         raise LbsceneUserError.single("LB407", "CSV file has no rows", display, 1, 1,
                                       expected="a header 'wavelength_nm,<value>' and data rows")
@@ -240,5 +239,34 @@ def _read_instrument(spec, path: Path, kind: SpectrumKind) -> np.ndarray:
                                           display, value=spec.name, expected=f"one of {sorted(sds)}")
         sd = sds[spec.name]
     else:
-        sd = next(iter(sds.values()))
+        sd = next(iter(sds.values())) if sds else None
+    if sd is None:
+        raise LbsceneUserError.single("LB203", f"no spectrum in the {spec.format} file", display,
+                                      expected=f"a valid {spec.format} export")
+    _check_instrument_values(np.asarray(sd.wavelengths, float), np.asarray(sd.values, float), display)
     return to_reference(sd.wavelengths, sd.values, extrapolate=_extrapolation(kind))
+
+
+def _check_instrument_values(wl: np.ndarray, values: np.ndarray, display: str) -> None:
+    """What the instrument file's reader returned: wavelengths finite and strictly increasing
+    (``LB405``), values finite (``LB401``) and not negative (``LB402``), at least two
+    (``LB407``); each problem named by its wavelength, in the file."""
+    if wl.size < 2 or values.shape != wl.shape:
+        raise LbsceneUserError.single("LB407", f"the file gives {wl.size} wavelength(s)", display,
+                                      expected="a spectrum of at least two wavelengths")
+    bad = np.nonzero(~np.isfinite(wl))[0]
+    if bad.size == 0:
+        bad = np.nonzero(np.diff(wl) <= 0)[0] + 1
+    if bad.size:
+        i = int(bad[0])
+        raise LbsceneUserError.single("LB405", "wavelengths are not finite and strictly increasing", display,
+                                      value=f"{wl[i]:g} nm" + (f" after {wl[i - 1]:g} nm" if i else ""),
+                                      expected="strictly increasing wavelengths")
+    for code, mask, what, exp in (("LB401", ~np.isfinite(values), "is not a finite number", "a finite number"),
+                                  ("LB402", values < 0, "is negative", "a value ≥ 0")):
+        bad = np.nonzero(mask)[0]
+        if bad.size:
+            i = int(bad[0])
+            raise LbsceneUserError.single(
+                code, f"the value at {wl[i]:g} nm {what}" + (f" ({bad.size} wavelengths)" if bad.size > 1 else ""),
+                display, value=repr(float(values[i])), expected=exp)

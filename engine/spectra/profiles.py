@@ -41,7 +41,7 @@ from lbscene.engine.files.yamlio import read_text_bounded
 __all__ = ["IsotropicShape", "GaussianShape", "CosinePowerShape", "IesShape", "profile_shape",
            "modulation_solid_angle_sr", "read_ies", "IesData", "ies_text", "ies_frame", "ies_angles",
            "base_law", "base_solid_angle_sr", "sphere_directions", "solid_angle_weight_sr",
-           "modulation"]
+           "modulation", "MAX_IES_ANGLES"]
 
 
 @dataclass(frozen=True)
@@ -131,8 +131,36 @@ class IesShape:
         return np.where(inside, val, 0.0) / peak
 
 
+#: Most vertical or horizontal angles an IES file may declare (LM-63 files have at most a few
+#: hundred; the count sizes the candela table before it is read).
+MAX_IES_ANGLES = 10_000
+
+
+def _ies_tokens(lines: list[str], first: int) -> list[tuple[str, int, int]]:
+    """Whitespace- or comma-separated tokens after the TILT line, each with its line and column."""
+    import re
+
+    out = []
+    for no in range(first, len(lines)):
+        for m in re.finditer(r"[^\s,]+", lines[no]):
+            out.append((m.group(0), no + 1, m.start() + 1))
+    return out
+
+
 def read_ies(path: Path, display: str) -> IesData:
-    """Read an IES LM-63 (1995/2002/2019) photometric file (TILT=NONE only)."""
+    """Read an IES LM-63 (1995/2002/2019) photometric file (TILT=NONE only).
+
+    Every number is checked where it stands (``LB203`` at its line and column): the counts of
+    vertical and horizontal angles are whole numbers (1 …, vertical at least 2) whose table
+    the file holds exactly (13 header numbers, the angles, the candela values: no more, no
+    fewer); every value is a finite number; the multiplier is positive and the candela values
+    (times the multiplier) are non-negative, with a positive peak.
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB203`` located in the IES file; ``LB0xx`` for a file that cannot be read.
+    """
     text = read_text_bounded(path, display, 2 * 1024 * 1024)
     lines = text.splitlines()
     tilt_idx = next((i for i, ln in enumerate(lines) if ln.strip().upper().startswith("TILT=")), None)
@@ -143,26 +171,79 @@ def read_ies(path: Path, display: str) -> IesData:
         raise LbsceneUserError.single("LB203", "IES files with lamp tilt data are not supported",
                                       display, tilt_idx + 1, 1, value=lines[tilt_idx].strip(),
                                       expected="TILT=NONE")
-    try:
-        nums = [float(x) for x in " ".join(lines[tilt_idx + 1:]).replace(",", " ").split()]
-        _n_lamps, lm_per_lamp, mult, nv, nh = nums[0], nums[1], nums[2], int(nums[3]), int(nums[4])
-        rest = nums[13:]  # skip photometric type, units, dimensions, ballast factors, watts
-        v = np.array(rest[:nv])
-        h = np.array(rest[nv:nv + nh])
-        cd = np.array(rest[nv + nh: nv + nh + nv * nh]).reshape(nh, nv) * mult
-    except (ValueError, IndexError) as exc:
-        raise LbsceneUserError.single("LB203", f"malformed IES data: {exc}", display,
-                                      expected="IES LM-63 numeric block after TILT=NONE")
-    if cd.size != nv * nh or nv < 2 or np.any(np.diff(v) <= 0) or cd.max() <= 0:
-        raise LbsceneUserError.single("LB203", "malformed IES candela table", display,
-                                      expected="increasing vertical angles and positive candela")
+    toks = _ies_tokens(lines, tilt_idx + 1)
+
+    def err(message, k=None, **kw):
+        line, col = (toks[k][1], toks[k][2]) if k is not None and k < len(toks) else \
+            ((toks[-1][1], toks[-1][2]) if toks else (tilt_idx + 1, 1))
+        return LbsceneUserError.single("LB203", message, display, line, col, **kw)
+
+    names = ("number of lamps", "lumens per lamp", "candela multiplier", "number of vertical angles",
+             "number of horizontal angles", "photometric type", "units type", "width", "length", "height",
+             "ballast factor", "ballast-lamp photometric factor", "input watts")
+    if len(toks) < len(names):
+        raise err(f"IES header has {len(toks)} of its {len(names)} numbers after TILT=NONE",
+                  expected="lamps, lumens, multiplier, vertical and horizontal angle counts, photometric "
+                           "type, units, width, length, height, ballast factor, future use, watts")
+
+    def number(k: int, what: str) -> float:
+        tok = toks[k][0]
+        try:
+            x = float(tok)
+        except ValueError:
+            x = float("nan")
+        if not np.isfinite(x):
+            raise err(f"IES {what} is not a finite number", k, value=repr(tok[:40]), expected="a finite number")
+        return x
+
+    head = [number(k, names[k]) for k in range(len(names))]
+    counts = []
+    for k in (3, 4):
+        n = head[k]
+        lo = 2 if k == 3 else 1
+        if n != int(n) or not lo <= n <= MAX_IES_ANGLES:
+            raise err(f"IES {names[k]} must be a whole number from {lo} to {MAX_IES_ANGLES}", k,
+                      value=repr(toks[k][0]), expected=f"a whole number {lo} … {MAX_IES_ANGLES}")
+        counts.append(int(n))
+    nv, nh = counts
+    mult, lm_per_lamp = head[2], head[1]
+    if mult <= 0:
+        raise err("IES candela multiplier must be positive", 2, value=repr(toks[2][0]), expected="a number > 0")
+    need = len(names) + nv + nh + nv * nh
+    if len(toks) != need:
+        k = need if len(toks) > need else None
+        raise err(f"IES file has {len(toks) - len(names)} values after its header; its counts "
+                  f"({nv} vertical × {nh} horizontal angles) need {need - len(names)}", k,
+                  value=f"{len(toks) - len(names)} values",
+                  expected=f"{nv} vertical angles, {nh} horizontal angles and {nv} × {nh} candela values"
+                           + (": the first extra value is here" if k is not None else ""))
+    vals = np.array([number(k, "angle" if k < len(names) + nv + nh else "candela value")
+                     for k in range(len(names), need)])
+    v = vals[:nv]
+    h = vals[nv:nv + nh]
+    with np.errstate(over="ignore", invalid="ignore"):
+        cd = vals[nv + nh:].reshape(nh, nv) * mult
+    first_cd = len(names) + nv + nh
+    bad = np.nonzero(~np.isfinite(cd.ravel()) | (cd.ravel() < 0))[0]
+    if bad.size:
+        k = first_cd + int(bad[0])
+        raise err("IES candela value is negative" if cd.ravel()[bad[0]] < 0 else
+                  "IES candela value times the multiplier overflows", k, value=repr(toks[k][0]),
+                  expected="candela values ≥ 0 (finite after the multiplier)")
+    if cd.max() <= 0:
+        raise err("IES candela table is zero everywhere", first_cd, expected="a positive peak intensity")
+    bad = np.nonzero(np.diff(v) <= 0)[0]
+    if bad.size:
+        k = len(names) + int(bad[0]) + 1
+        raise err("IES vertical angles are not increasing", k, value=f"{v[bad[0] + 1]:g} after {v[bad[0]]:g}",
+                  expected="strictly increasing vertical angles")
     if v[0] < 0 or v[-1] > 180:
-        raise LbsceneUserError.single("LB203", f"IES vertical angles {v[0]:g}..{v[-1]:g} outside 0..180°",
-                                      display, expected="type C vertical angles within 0..180°")
+        raise err(f"IES vertical angles {v[0]:g}..{v[-1]:g} outside 0..180°", len(names),
+                  expected="type C vertical angles within 0..180°")
     full = h[-1] > 180.0 and h[-1] <= 360.0       # full set, with or without its 360° plane
     if h[0] != 0 or np.any(np.diff(h) <= 0) or not (nh == 1 or h[-1] in (90.0, 180.0) or full):
-        raise LbsceneUserError.single(
-            "LB203", f"IES horizontal angles {h[0]:g}..{h[-1]:g} are not a type C set", display,
+        raise err(
+            f"IES horizontal angles {h[0]:g}..{h[-1]:g} are not a type C set", len(names) + nv,
             expected="horizontal angles increasing from 0 and ending at 0 (rotational), 90 "
                      "(quadrant), 180 (bilateral) or up to 360° (full; the 360° plane may be left out)")
     return IesData(v, h, cd, lm_per_lamp)

@@ -21,9 +21,7 @@ True
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +38,7 @@ __all__ = [
     "balanced_blocks",
     "plan_trials",
     "read_results",
+    "MAX_RESULTS_BYTES",
 ]
 
 RESULTS_FORMAT = "lbscene.visual_results"
@@ -114,7 +113,14 @@ def load_session(path: Path, allowed_dirs=()) -> LoadedSession:
     from lbscene.schemas.sample import Sample
     from lbscene.schemas.visual_session import VisualSession
 
+    from lbscene.engine.files.limits import check_work
+
     doc = load_document(Path(path), VisualSession, allowed_dirs=allowed_dirs)
+    m = doc.model
+    # every trial is planned, embedded in the viewer and answered: bounded before any is made
+    check_work("trials", len(m.observers) * m.repeats * len(m.lightings) * len(m.geometries) * len(m.samples),
+               doc.locate("observers"), what=f"trials of session {m.name!r} ({len(m.observers)} observers × "
+               f"{m.repeats} repeats × {len(m.lightings) * len(m.geometries) * len(m.samples)} cases)")
     samples = []
     for i, ref in enumerate(doc.model.samples):
         sdoc = load_document(doc.resolve(ref), Sample, allowed_dirs=allowed_dirs)
@@ -136,10 +142,51 @@ def _err(code, message, file, line=0, **kw):
     return LbsceneUserError.single(code, message, file, line, 1 if line else 0, **kw)
 
 
+#: Largest results file read (a panel of 16 observers writes a few hundred kB).
+MAX_RESULTS_BYTES = 32 * 1024 * 1024
+
+
+def _number(value, what: str, where, *, whole: bool = False, minimum: float | None = None):
+    """A results field as a finite number (an integer when ``whole``), else the located ``LB710``.
+
+    ``where`` is ``(file, line, item)``: a CSV row by its line, a JSON response by its index.
+    """
+    import math
+
+    shown, line, item = where
+    ok = not isinstance(value, bool) and (isinstance(value, (int, float)) or isinstance(value, str))
+    x = math.nan
+    if ok:
+        try:
+            x = float(value)
+        except (TypeError, ValueError, OverflowError):
+            x = math.nan
+    if not math.isfinite(x) or (whole and x != int(x)) or (minimum is not None and x < minimum):
+        need = ("a whole number" if whole else "a finite number") + \
+            (f" ≥ {minimum:g}" if minimum is not None else "")
+        raise _err("LB710", f"{item}{what} must be {need}", shown, line,
+                   value=repr(value)[:60], expected=need)
+    return int(x) if whole else x
+
+
+def _text(value, what: str, where) -> str:
+    shown, line, item = where
+    if not isinstance(value, str):
+        raise _err("LB710", f"{item}{what} must be text", shown, line, value=repr(value)[:60],
+                   expected="a string")
+    return value
+
+
 def read_results(paths, session: LoadedSession) -> list[dict]:
     """Rows of results files (CSV with :data:`RESULT_COLUMNS` or the viewer's JSON),
-    checked against the session: each row gets ``case`` = (lighting, geometry, sample)."""
+    checked against the session: each row gets ``case`` = (lighting, geometry, sample).
+
+    Every file is read bounded (:data:`MAX_RESULTS_BYTES`), as UTF-8 text; every field is
+    checked for its type (a JSON score of ``true``, ``"NaN"``, a list …) with the row's line (CSV)
+    or the response's index (JSON): ``LB710``; what does not match the session: ``LB711``.
+    """
     from lbscene.engine.files.load import display_path
+    from lbscene.engine.files.yamlio import csv_rows, parse_json_text, read_text_bounded
 
     m = session.model
     cases = set(session.cases)
@@ -150,62 +197,72 @@ def read_results(paths, session: LoadedSession) -> list[dict]:
     for path in paths:
         path = Path(path)
         shown = display_path(path)
-        if not path.is_file():
-            raise _err("LB010", "file not found", shown)
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_text_bounded(path, shown, MAX_RESULTS_BYTES)
         if path.suffix.lower() == ".json":
-            try:
-                d = json.loads(text)
-            except ValueError as exc:
-                raise _err("LB710", f"not JSON: {exc.msg}", shown, exc.lineno, expected="a results file")
+            d = parse_json_text(text, shown)
             if not isinstance(d, dict) or d.get("format") != RESULTS_FORMAT:
                 raise _err("LB710", f"not an {RESULTS_FORMAT} file", shown, 1,
                            expected="the JSON the viewer's test mode writes")
             if d.get("session") != m.name:
                 raise _err("LB711", f"results of session {d.get('session')!r}, not {m.name!r}", shown, 1,
                            expected=f"results of session {m.name!r}")
-            items = [(None, it) for it in d.get("responses", [])]
+            responses = d.get("responses", [])
+            if not isinstance(responses, list) or not all(isinstance(it, dict) for it in responses):
+                raise _err("LB710", "'responses' must be a list of objects", shown, 1,
+                           value=type(responses).__name__, expected="[{observer, repeat, lighting, …}, …]")
+            items = [(None, f"responses[{i}]: ", it) for i, it in enumerate(responses)]
         else:
-            reader = csv.DictReader(io.StringIO(text))
+            table = csv_rows(text, shown)
+            header = [h.strip() for h in table[0][1]] if table else []
             missing = [c for c in ("observer", "repeat", "lighting", "geometry", "sample", "score")
-                       if c not in (reader.fieldnames or [])]
+                       if c not in header]
             if missing:
                 raise _err("LB710", f"missing column(s): {', '.join(missing)}", shown, 1,
                            expected=f"a CSV with columns {', '.join(RESULT_COLUMNS)}")
-            items = [(reader.line_num, row) for row in reader]
-            # DictReader.line_num is read after the row: recompute the physical lines
-            items = [(i + 2, row) for i, (_, row) in enumerate(items)]
-        for line, it in items:
-            where = line or 0
+            items = []
+            for line, row in table[1:]:
+                if not any(c.strip() for c in row):
+                    continue
+                if len(row) != len(header):
+                    raise _err("LB710", f"row has {len(row)} fields, header has {len(header)}", shown, line)
+                items.append((line, "", dict(zip(header, row))))
+        for line, item, it in items:
+            where = (shown, line or 0, item)
             if it.get("session") not in (None, "", m.name):
-                raise _err("LB711", f"row of session {it.get('session')!r}, not {m.name!r}", shown, where,
-                           expected=f"results of session {m.name!r}")
-            try:
-                score = float(it["score"])
-                repeat = int(it["repeat"])
-            except (TypeError, ValueError, KeyError):
-                raise _err("LB710", "score and repeat must be numbers", shown, where,
-                           value=f"score={it.get('score')!r}, repeat={it.get('repeat')!r}")
-            case = (str(it["lighting"]), str(it["geometry"]), str(it["sample"]))
+                raise _err("LB711", f"{item}row of session {it.get('session')!r}, not {m.name!r}", shown,
+                           line or 0, expected=f"results of session {m.name!r}")
+            for k in ("observer", "repeat", "lighting", "geometry", "sample", "score"):
+                if k not in it:
+                    raise _err("LB710", f"{item}missing field {k!r}", shown, line or 0,
+                               expected="observer, repeat, lighting, geometry, sample, score")
+            score = _number(it["score"], "score", where)
+            repeat = _number(it["repeat"], "repeat", where, whole=True, minimum=1)
+            case = tuple(_text(it[k], k, where) for k in ("lighting", "geometry", "sample"))
+            obs = _text(it["observer"], "observer", where)
             if case not in cases:
-                raise _err("LB711", f"case {' / '.join(case)} is not in session {m.name!r}", shown, where,
-                           expected="a lighting, geometry and sample of the session")
-            if str(it["observer"]) not in observers:
-                raise _err("LB711", f"observer {it['observer']!r} is not in session {m.name!r}", shown, where,
+                raise _err("LB711", f"{item}case {' / '.join(case)} is not in session {m.name!r}", shown,
+                           line or 0, expected="a lighting, geometry and sample of the session")
+            if obs not in observers:
+                raise _err("LB711", f"{item}observer {obs!r} is not in session {m.name!r}", shown, line or 0,
                            expected=f"one of {', '.join(sorted(observers))}")
+            if repeat > m.repeats:
+                raise _err("LB711", f"{item}repeat {repeat} is beyond the session's {m.repeats}", shown,
+                           line or 0, expected=f"a repeat from 1 to {m.repeats}")
             if r.type == "grey_scale" and not (r.min - 1e-9 <= score <= r.max + 1e-9):
-                raise _err("LB710", f"score {score:g} is outside the grey scale {r.min:g}–{r.max:g}", shown, where)
+                raise _err("LB710", f"{item}score {score:g} is outside the grey scale {r.min:g}–{r.max:g}",
+                           shown, line or 0)
             if r.type == "delta_e_estimate" and score < 0:
-                raise _err("LB710", f"ΔE estimate {score:g} is negative", shown, where)
-            key = (str(it["observer"]), repeat, case)
+                raise _err("LB710", f"{item}ΔE estimate {score:g} is negative", shown, line or 0)
+            key = (obs, repeat, case)
             if key in seen:
-                raise _err("LB711", f"second answer of observer {key[0]} to case {' / '.join(case)} in repeat "
-                                    f"{repeat} (first in {seen[key]})", shown, where,
+                raise _err("LB711", f"{item}second answer of observer {key[0]} to case {' / '.join(case)} in "
+                                    f"repeat {repeat} (first in {seen[key]})", shown, line or 0,
                            expected="one answer per observer, repeat and case (each results file once)")
-            seen[key] = shown + (f":{where}" if where else "")
+            seen[key] = shown + (f":{line}" if line else f" {item.rstrip(': ')}")
             rt = it.get("response_time_ms")
-            rows.append({"observer": str(it["observer"]), "repeat": repeat, "case": case, "score": score,
-                         "response_time_ms": float(rt) if rt not in (None, "") else float("nan"),
+            rows.append({"observer": obs, "repeat": repeat, "case": case, "score": score,
+                         "response_time_ms": float("nan") if rt in (None, "")
+                         else _number(rt, "response_time_ms", where, minimum=0),
                          "source": shown})
     if not rows:
         raise _err("LB710", "no responses in the results", ", ".join(display_path(Path(p)) for p in paths))

@@ -12,7 +12,6 @@ The visual-test report: what the seed study reported, from the observers' result
 from __future__ import annotations
 
 import base64
-import csv
 import html
 import io
 import math
@@ -32,24 +31,39 @@ def _f(x):
 
 
 def read_model_delta_e(path: Path, session) -> dict:
-    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed."""
+    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed.
+
+    Read bounded (:data:`~lbscene.engine.visual.protocol.MAX_RESULTS_BYTES`); a ΔE00 that is not a
+    finite number ≥ 0 is a located ``LB710``.
+    """
     from lbscene.engine.files.load import display_path
+    from lbscene.engine.files.yamlio import csv_rows, read_text_bounded
+
+    from .protocol import MAX_RESULTS_BYTES
 
     shown = display_path(Path(path))
-    if not Path(path).is_file():
-        raise LbsceneUserError.single("LB010", "file not found", shown)
-    reader = csv.DictReader(io.StringIO(Path(path).read_text(encoding="utf-8-sig")))
+    table = csv_rows(read_text_bounded(Path(path), shown, MAX_RESULTS_BYTES), shown)
     need = ("lighting", "geometry", "sample", "delta_e00")
-    if any(c not in (reader.fieldnames or []) for c in need):
+    header = [h.strip() for h in table[0][1]] if table else []
+    if any(c not in header for c in need):
         raise LbsceneUserError.single("LB710", "missing column(s)", shown, 1, 1,
                                       expected=f"a CSV with columns {', '.join(need)}")
     out = {}
-    for i, row in enumerate(reader):
+    for line, row in table[1:]:
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise LbsceneUserError.single("LB710", f"row has {len(row)} fields, header has {len(header)}",
+                                          shown, line, 1)
+        d = dict(zip(header, row))
         try:
-            out[(row["lighting"], row["geometry"], row["sample"])] = float(row["delta_e00"])
+            de = float(d["delta_e00"])
         except ValueError:
-            raise LbsceneUserError.single("LB710", "delta_e00 must be a number", shown, i + 2, 1,
-                                          value=repr(row["delta_e00"]))
+            de = math.nan
+        if not math.isfinite(de) or de < 0:
+            raise LbsceneUserError.single("LB710", "delta_e00 must be a finite number ≥ 0", shown, line, 1,
+                                          value=repr(d["delta_e00"][:40]), expected="a ΔE00 ≥ 0")
+        out[(d["lighting"], d["geometry"], d["sample"])] = de
     missing = [c for c in session.cases if c not in out]
     if missing:
         raise LbsceneUserError.single("LB711", f"no model ΔE00 for case {' / '.join(missing[0])}", shown,
@@ -98,6 +112,14 @@ def _png(fig) -> str:
 
 
 def _plots(stats: dict) -> list[tuple[str, str]]:
+    """The report's figures; sample and observer names are drawn as written (no mathtext)."""
+    from lbscene.engine.files.textsafe import plain_text_plots
+
+    with plain_text_plots():
+        return _make_plots(stats)
+
+
+def _make_plots(stats: dict) -> list[tuple[str, str]]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -105,7 +127,9 @@ def _plots(stats: dict) -> list[tuple[str, str]]:
 
     out = []
     cases = stats["cases"]
-    labels = [f"{c['lighting']}/{c['geometry']}/{c['sample']}" for c in cases]
+    from lbscene.engine.files.textsafe import printable
+
+    labels = [printable(f"{c['lighting']}/{c['geometry']}/{c['sample']}", newlines=False) for c in cases]
     fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(cases) + 2), 3.6))
     ax.bar(range(len(cases)), [c["mean_score"] for c in cases], yerr=[c["sd_score"] for c in cases],
            color="#7a9cc6", capsize=2)
@@ -149,7 +173,11 @@ def _plots(stats: dict) -> list[tuple[str, str]]:
 
 def render_html(stats: dict, session) -> str:
     """One self-contained HTML page (plots as data: URIs)."""
-    e = html.escape
+    from lbscene.engine.files.textsafe import printable
+
+    def e(x) -> str:
+        return html.escape(printable(x))
+
     s = stats["summary"]
 
     def num(v, fmt="{:.2f}"):

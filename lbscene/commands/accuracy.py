@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from enum import Enum
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format
+from lbscene.engine.files.textsafe import json_text
 
 
 class Mapping(str, Enum):
@@ -189,9 +190,9 @@ def register(app: typer.Typer) -> None:
         if plot is not None:
             plot_per_patch(results, plot)
         if format is Format.json:
-            typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, allow_nan=False))
+            echo(json_text(rows, indent=2, allow_nan=False))
         else:
-            typer.echo(_text_report(results, rows))
+            echo(_text_report(results, rows))
             if plot is not None:
-                typer.echo(f"\nplot: {plot}")
+                echo(f"\nplot: {plot}")
         raise typer.Exit(0 if all(r["band_target_met"] for r in rows) else 1)

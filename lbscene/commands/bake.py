@@ -17,7 +17,6 @@ check fails its tolerance.
 
 from __future__ import annotations
 
-import json
 import time
 from enum import Enum
 from pathlib import Path
@@ -25,7 +24,9 @@ from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo, out_console
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 
 #: Bound on --samples: 65 536 samples per texel already takes hours for an environment map on a CPU.
@@ -48,7 +49,9 @@ def _load_ir(target: Path, allowed_dirs) -> tuple[object, Path, bool]:
     from lbscene.engine.files.diagnostics import LbsceneUserError
     from lbscene.engine.scene.ir import SceneIR
 
-    if target.is_dir() and (target / "scene.ir.json").is_file():
+    from lbscene.engine.files.yamlio import path_kind
+
+    if path_kind(target) == "dir" and path_kind(target / "scene.ir.json") == "file":
         try:
             from lbscene.engine.files.yamlio import read_text_bounded
 
@@ -163,9 +166,9 @@ def register(app: typer.Typer) -> None:
             rows.append(row)
         failed = [r for r in results if r.status == "failed"]
         if format is Format.json:
-            typer.echo(json.dumps({"booth": ir.booth_name, "ir_hash": ir.content_hash,
+            echo(json_text({"booth": ir.booth_name, "ir_hash": ir.content_hash,
                                    "quality": quality.value, "elapsed_s": round(elapsed, 2),
-                                   "bakes": rows}, indent=2, ensure_ascii=False))
+                                   "bakes": rows}, indent=2))
         else:
             table = Table(title=f"{ir.booth_name}: Cycles bakes ({quality.value}) → {root}")
             for col in ("lighting", "status", "time s", "grid mean lx", "grid noise %", "sample lx (env)"):
@@ -178,11 +181,11 @@ def register(app: typer.Typer) -> None:
             from lbscene.commands.console import out_console
 
             out_console().print(table)
-            typer.echo(f"{len(results) - len(failed)}/{len(results)} bakes ready ({elapsed:.1f} s)")
+            echo(f"{len(results) - len(failed)}/{len(results)} bakes ready ({elapsed:.1f} s)")
             for r in failed:
-                typer.echo(f"error LB600: bake {r.task.label} failed: {r.error}", err=True)
+                echo(f"error LB600: bake {r.task.label} failed: {r.error}", err=True)
                 for line in r.log_tail[-8:]:
-                    typer.echo(f"    {line}", err=True)
+                    echo(f"    {line}", err=True)
         if failed:
             raise typer.Exit(1)
 
@@ -196,7 +199,6 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     differences are what the bake's noise alone would give (mean within 3 standard errors,
     χ² test).
     """
-    from rich.console import Console
     from rich.table import Table
 
     from lbscene.bakers.crosscheck import MODES, cross_check_all
@@ -213,9 +215,9 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     failed = [r for r in rows if not r["passed"]]
     elapsed = time.perf_counter() - t0
     if format is Format.json:
-        typer.echo(json.dumps({"booth": ir.booth_name, "ir_hash": ir.content_hash, "quality": quality,
+        echo(json_text({"booth": ir.booth_name, "ir_hash": ir.content_hash, "quality": quality,
                                "elapsed_s": round(elapsed, 2), "cross_check": rows},
-                              indent=2, ensure_ascii=False))
+                              indent=2))
     else:
         table = Table(title=f"{ir.booth_name}: Cycles / analytic model − 1 at "
                             f"{rows[0]['points'] if rows else 0} grid points ({quality})")
@@ -231,7 +233,7 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
                           f"(χ² p {r['chi2_p']:.2g})",
                           f"ok ≤{r['tolerance_percent']:.1f}" if r["passed"]
                           else f"FAIL >{r['tolerance_percent']:.1f}")
-        Console().print(table)
-        typer.echo(f"{len(rows) - len(failed)}/{len(rows)} checks agree ({elapsed:.1f} s)")
+        out_console().print(table)
+        echo(f"{len(rows) - len(failed)}/{len(rows)} checks agree ({elapsed:.1f} s)")
     if failed:
         raise typer.Exit(1)

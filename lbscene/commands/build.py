@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -46,7 +47,7 @@ def register(app: typer.Typer) -> None:
         if format is Format.json:
             d = result.to_json()
             d["elapsed_s"] = round(elapsed, 3)
-            typer.echo(json.dumps(d, indent=2, ensure_ascii=False))
+            echo(json_text(d, indent=2))
             return
         table = Table(title=f"{result.booth_name} → {result.out_dir}")
         table.add_column("file")
@@ -54,8 +55,8 @@ def register(app: typer.Typer) -> None:
         for name, digest in result.files.items():
             table.add_row(name, digest[:16])
         out_console().print(table)
-        typer.echo(f"IR {result.ir_hash[:16]}  lightings: {', '.join(result.lightings)}  "
+        echo(f"IR {result.ir_hash[:16]}  lightings: {', '.join(result.lightings)}  "
                    f"({elapsed:.2f} s)")
         for w in result.skipped_writers:
-            typer.echo(f"note: {w} is not available in this build; its products were not written",
+            echo(f"note: {w} is not available in this build; its products were not written",
                        err=True)

@@ -3,18 +3,19 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import (
     Format,
     allow_path_option,
     booth_override_option,
     measurements_argument,
 )
+from lbscene.engine.files.textsafe import json_text
 
 
 def diagnosis_progress(console, enabled: bool):
@@ -39,9 +40,11 @@ def diagnosis_progress(console, enabled: bool):
 def print_text(res, console) -> None:
     from rich.table import Table
 
+    from lbscene.commands.console import styled
+
     j = res.to_json()
     f = res.fit
-    console.print(f"[bold]{res.meas.name}[/bold]  booth {res.meas.booth_file}  lighting {res.meas.lighting}")
+    console.print(styled((res.meas.name, "bold"), f"  booth {res.meas.booth_file}  lighting {res.meas.lighting}"))
     console.print(f"effects: {', '.join(sorted(f.effects)) or 'none'}"
                   + (f"   known output: {', '.join(res.meas.known_output_groups)}"
                      if res.meas.known_output_groups else ""))
@@ -63,7 +66,7 @@ def print_text(res, console) -> None:
                       f"{p['bounds'][0]:g} … {p['bounds'][1]:g}" + (" (at bound)" if p["at_bound"] else ""))
         console.print(t)
     for w in f.warnings:
-        console.print(f"[yellow]warning:[/yellow] {w}")
+        console.print(styled(("warning:", "yellow"), f" {w}"))
     if n:
         worst = sorted(j["residuals"], key=lambda r: -abs(r["residual_percent"]))[:5]
         t = Table(title="largest residuals", title_justify="left")
@@ -106,8 +109,8 @@ def print_text(res, console) -> None:
                       f"{o['measured_lx']:.1f}", f"{o['model_lx']:.1f}", f"{o['deviation_percent']:+.1f}")
         console.print(t)
     style = {"none": "green", "ambiguous": "yellow"}.get(d.verdict.kind, "red")
-    console.print(f"verdict: [bold {style}]{d.verdict}[/bold {style}]"
-                  + (f"  ({res.outlier_note})" if res.outlier_note else ""))
+    console.print(styled("verdict: ", (str(d.verdict), f"bold {style}"),
+                         f"  ({res.outlier_note})" if res.outlier_note else ""))
     c = d.confidence
     if c is not None:
         bits = []
@@ -180,14 +183,14 @@ def register(app: typer.Typer) -> None:
             out = res.to_json()
             if report is not None:
                 out["report"] = str(report)
-            text = json.dumps(out, indent=2, ensure_ascii=False)
+            text = json_text(out, indent=2)
             if json_out is not None:
                 from lbscene.engine.files.outputs import write_output
 
                 write_output(json_out, text + "\n", option="--json-out")
         if format is Format.json:
-            typer.echo(text)
+            echo(text)
         else:
             print_text(res, out_console())
             if report is not None:
-                typer.echo(f"report: {report}")
+                echo(f"report: {report}")

@@ -4,6 +4,10 @@
 * Piped or redirected: tables as wide as they need (``$COLUMNS`` if set, else 200
   characters; cells wrap instead of being cut with "…"), and progress as plain lines,
   one per step, on stderr — a log keeps them, a pipe is not filled with escape codes.
+* User text is shown as it is written: the consoles parse no rich markup and no emoji codes
+  in strings (a sample named ``[/link]`` is printed, not parsed), and control characters are
+  shown as escapes (:func:`lbscene.engine.files.textsafe.printable`); styles are given as ``style=``
+  or :class:`rich.text.Text`.  :func:`echo` does the same for plain lines.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import os
 import sys
 import time
 
-__all__ = ["out_console", "err_console", "progress", "PlainProgress"]
+__all__ = ["out_console", "err_console", "progress", "PlainProgress", "echo", "styled"]
 
 #: Width of tables written to a pipe or a file (no terminal to fit).
 PIPED_WIDTH = 200
@@ -27,18 +31,53 @@ def _width(stream) -> int | None:
         return PIPED_WIDTH
 
 
-def out_console():
-    """Console for a command's result (stdout)."""
+def _safe_console(**kw):
+    """A rich console that renders strings literally: no markup, no emoji codes, control
+    characters escaped (table cells, titles and status lines included)."""
     from rich.console import Console
 
-    return Console(width=_width(sys.stdout))
+    from lbscene.engine.files.textsafe import printable
+
+    class _LiteralConsole(Console):
+        def render_str(self, text, **options):
+            options["markup"] = False
+            options["emoji"] = False
+            return super().render_str(printable(text), **options)
+
+    return _LiteralConsole(markup=False, emoji=False, **kw)
+
+
+def out_console():
+    """Console for a command's result (stdout)."""
+    return _safe_console(width=_width(sys.stdout))
 
 
 def err_console():
     """Console for progress and notes (stderr)."""
-    from rich.console import Console
+    return _safe_console(stderr=True, width=_width(sys.stderr))
 
-    return Console(stderr=True, width=_width(sys.stderr))
+
+def styled(*parts):
+    """A :class:`rich.text.Text` of ``(text, style)`` pairs and plain strings, user text escaped:
+    ``styled(("verdict: ", ""), (str(v), "bold red"))``."""
+    from rich.text import Text
+
+    from lbscene.engine.files.textsafe import printable
+
+    out = Text()
+    for p in parts:
+        text, style = (p, "") if isinstance(p, str) else p
+        out.append(printable(text), style=style or None)
+    return out
+
+
+def echo(text: str = "", *, err: bool = False) -> None:
+    """One line of plain text (``typer.echo``), control characters shown as escapes."""
+    import typer
+
+    from lbscene.engine.files.textsafe import printable
+
+    typer.echo(printable(text), err=err)
 
 
 class PlainProgress:
@@ -61,7 +100,10 @@ class PlainProgress:
         line = f"{t['description']}{count}"
         if line != t.get("said"):
             t["said"] = line
-            print(f"[{time.perf_counter() - self.t0:6.1f} s] {line}", file=self.stream, flush=True)
+            from lbscene.engine.files.textsafe import printable
+
+            print(f"[{time.perf_counter() - self.t0:6.1f} s] {printable(line, newlines=False)}", file=self.stream,
+                  flush=True)
 
     def add_task(self, description: str, total=None, **_) -> int:
         tid = len(self.tasks)
@@ -85,10 +127,29 @@ class PlainProgress:
 
 
 def progress(*columns, console=None, transient: bool = True, disable: bool = False):
-    """A rich progress display on a terminal, plain lines otherwise, nothing when ``disable``."""
-    from rich.progress import Progress
+    """A rich progress display on a terminal, plain lines otherwise, nothing when ``disable``.
+
+    Descriptions often hold user text (a lighting, a file): text columns render them without
+    markup, and control characters are shown as escapes either way.
+    """
+    from rich.progress import Progress, TextColumn
+
+    from lbscene.engine.files.textsafe import printable
 
     console = console or err_console()
     if disable or console.is_terminal:
-        return Progress(*columns, console=console, transient=transient, disable=disable)
+        for c in columns:
+            if isinstance(c, TextColumn):
+                c.markup = False
+
+        class _LiteralProgress(Progress):
+            def add_task(self, description, *a, **kw):
+                return super().add_task(printable(description, newlines=False), *a, **kw)
+
+            def update(self, task_id, *a, description=None, **kw):
+                if description is not None:
+                    description = printable(description, newlines=False)
+                return super().update(task_id, *a, description=description, **kw)
+
+        return _LiteralProgress(*columns, console=console, transient=transient, disable=disable)
     return PlainProgress(console.file)

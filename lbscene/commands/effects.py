@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
-
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
             rows.append({"id": eid, "kind": getattr(cls, "kind", ""), "summary": cls.summary,
                          "module": cls.__module__, "parameters": params})
         if format is Format.json:
-            typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, default=str))
+            echo(json_text(rows, indent=2, default=str))
             return
         t = Table(title="registered effects (enable under `effects:` in a booth file)", title_justify="left")
         t.add_column("id")

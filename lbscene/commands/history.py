@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -35,11 +36,14 @@ def register(app: typer.Typer) -> None:
         if plot is not None and entries:
             from lbscene.engine.files.outputs import output_path
 
-            fig = plot_history(entries, title=f"history of {measurements.name}")
-            with output_path(plot, suffix=".png", option="--plot") as tmp:
-                fig.savefig(tmp, format="png", bbox_inches="tight")
+            from lbscene.engine.files.textsafe import plain_text_plots
+
+            with plain_text_plots():
+                fig = plot_history(entries, title=f"history of {measurements.name}")
+                with output_path(plot, suffix=".png", option="--plot") as tmp:
+                    fig.savefig(tmp, format="png", bbox_inches="tight")
         if format is Format.json:
-            typer.echo(json.dumps({"history": str(hp), "entries": entries,
+            echo(json_text({"history": str(hp), "entries": entries,
                                    "plot": str(plot) if plot and entries else None}, indent=2,
                                   ensure_ascii=False))
             return

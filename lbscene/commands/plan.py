@@ -2,18 +2,19 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import (
     Format,
     allow_path_option,
     booth_override_option,
     measurements_argument,
 )
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -35,7 +36,7 @@ def register(app: typer.Typer) -> None:
         from lbscene.engine.files.outputs import check_outputs
 
         check_outputs([(out, "--out")], inputs=[measurements, booth])
-        from lbscene.commands.console import err_console, out_console
+        from lbscene.commands.console import err_console, out_console, styled
 
         err = err_console()
         prog, cb = diagnosis_progress(err, format is not Format.json)
@@ -48,13 +49,13 @@ def register(app: typer.Typer) -> None:
 
             write_output(out, p.csv_template(), option="--out")
         if format is Format.json:
-            typer.echo(json.dumps({"verdict": str(res.verdict), "rmse_percent": round(res.fit.rmse_percent, 4),
+            echo(json_text({"verdict": str(res.verdict), "rmse_percent": round(res.fit.rmse_percent, 4),
                                    "plan": p.to_json() if p else None,
-                                   "csv": str(out) if out and p else None}, indent=2, ensure_ascii=False))
+                                   "csv": str(out) if out and p else None}, indent=2))
             return
         con = out_console()
-        con.print(f"verdict: [bold]{res.verdict}[/bold]  (RMSE {res.fit.rmse_percent:.2f} %, noise "
-                  f"{res.noise.percent:.2g} %)")
+        con.print(styled("verdict: ", (str(res.verdict), "bold"), f"  (RMSE {res.fit.rmse_percent:.2f} %, noise "
+                         f"{res.noise.percent:.2g} %)"))
         if p is None or not p.points:
             con.print("nothing to plan: there are no competing explanations to separate")
             return

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import time
@@ -12,7 +11,9 @@ from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 
 class Diffuse(str, Enum):
@@ -40,7 +41,9 @@ def _run_bake(job, console) -> None:
     build_dir = Path("build") / booth_file.resolve().parent.name
     for cmd in ([sys.executable, "-m", "lbscene", "build", str(booth_file), "--out", str(build_dir)],
                 [sys.executable, "-m", "lbscene", "bake", str(build_dir), "--lighting", job["lighting"]]):
-        console.print(f"[bold]running[/bold] {' '.join(cmd[2:])}")
+        from lbscene.commands.console import styled
+
+        console.print(styled(("running", "bold"), " " + " ".join(cmd[2:])))
         rc = subprocess.call(cmd)
         if rc != 0:
             from lbscene.engine.files.diagnostics import LbsceneUserError
@@ -159,7 +162,7 @@ def register(app: typer.Typer) -> None:
         frames, gl_name, elapsed = res.frames, res.gl_renderer, res.elapsed_s
         xyz_files = [str(p) for p in res.xyz_files]
         if format is Format.json:
-            typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
+            echo(json_text(result, indent=2))
             return
         from rich.table import Table
 
@@ -174,11 +177,11 @@ def register(app: typer.Typer) -> None:
                           f"{og.get('pixels', 0)} px ({100 * og.get('fraction', 0):.1f} %, max {og.get('max_excess', 0):.3f})")
         out_console().print(table)
         if job.diffuse == "analytic" and job.bake_note:
-            typer.echo(f"note: diffuse light is analytic: {job.bake_note}; run `lbscene bake` for baked "
+            echo(f"note: diffuse light is analytic: {job.bake_note}; run `lbscene bake` for baked "
                        "lighting", err=True)
         for n in job.notes:
-            typer.echo(f"note: {n}", err=True)
-        typer.echo(f"wrote {display_path(job.png)}" + (f" and {', '.join(xyz_files)}" if xyz_files else "")
+            echo(f"note: {n}", err=True)
+        echo(f"wrote {display_path(job.png)}" + (f" and {', '.join(xyz_files)}" if xyz_files else "")
                    + f"  ({job.size[0]}x{job.size[1]}, {job.diffuse} diffuse light, display "
                      f"{job.display.name}, {gl_name}, {elapsed:.1f} s)")
-        typer.echo(f"adaptation: {job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}")
+        echo(f"adaptation: {job.adaptation}: {ADAPTATION_DESCRIPTIONS[job.adaptation]}")

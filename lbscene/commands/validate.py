@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -25,11 +26,11 @@ def register(app: typer.Typer) -> None:
         Exit 0 clean, 1 warnings with --strict, 2 errors.
         """
         from lbscene.engine.files.diagnostics import Severity
-        from lbscene.engine.scene.validate import validate_paths
+        from lbscene.engine.conformance.validate import validate_paths
 
         report = validate_paths(paths, allowed_dirs=tuple(allow_path or ()))
         if format is Format.json:
-            typer.echo(json.dumps(report.to_json(), indent=2, ensure_ascii=False))
+            echo(json_text(report.to_json(), indent=2))
         else:
             for d in sorted(report.diagnostics,
                             key=lambda d: (d.location.file if d.location else "",
@@ -37,8 +38,8 @@ def register(app: typer.Typer) -> None:
                                            d.location.column if d.location else 0)):
                 if d.severity is Severity.INFO and not verbose:
                     continue
-                typer.echo(d.format(), err=d.severity is not Severity.INFO)
+                echo(d.format(), err=d.severity is not Severity.INFO)
             n = len(report.files)
-            typer.echo(f"{n} file{'s' if n != 1 else ''} checked: {report.errors} error(s), "
+            echo(f"{n} file{'s' if n != 1 else ''} checked: {report.errors} error(s), "
                        f"{report.warnings} warning(s)", err=True)
         raise typer.Exit(report.exit_code(strict))

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo, out_console
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 
 def register(app: typer.Typer) -> None:
@@ -38,26 +39,32 @@ def register(app: typer.Typer) -> None:
         if report is not None:
             write_output(report, render_html(stats, ses), option="--report")
         if json_out is not None:
-            write_output(json_out, json.dumps(stats, indent=1, ensure_ascii=False) + "\n", option="--json-out")
+            write_output(json_out, json_text(stats, indent=1) + "\n", option="--json-out")
         if format is Format.json:
-            typer.echo(json.dumps(stats, indent=1, ensure_ascii=False))
+            echo(json_text(stats, indent=1))
             return
-        from rich.console import Console
         from rich.table import Table
+
+        def num(v, fmt: str = "{:.2f}") -> str:
+            # a statistic the data cannot give (one repeat, one observer, one case) is None
+            return "—" if v is None else fmt.format(v)
 
         t = Table(title=f"session {stats['session']}: {stats['responses']} responses, "
                         f"{len(stats['observers'])} observers")
         for col in ("lighting", "geometry", "sample", "n", "mean score", "sd", "ΔV", "model ΔE00"):
             t.add_column(col, justify="left" if col in ("lighting", "geometry", "sample") else "right")
         for c in stats["cases"]:
-            t.add_row(c["lighting"], c["geometry"], c["sample"], str(c["n"]), f"{c['mean_score']:.2f}",
-                      f"{c['sd_score']:.2f}", f"{c['mean_delta_v']:.2f}",
-                      "" if c.get("model_delta_e00") is None else f"{c['model_delta_e00']:.2f}")
-        Console().print(t)
+            t.add_row(c["lighting"], c["geometry"], c["sample"], str(c["n"]), num(c["mean_score"]),
+                      num(c["sd_score"]), num(c["mean_delta_v"]), num(c.get("model_delta_e00")))
+        out_console().print(t)
         s = stats["summary"]
-        typer.echo(f"intra-observer STRESS: mean {s['intra_observer_stress_mean']:.1f}  "
-                   f"inter-observer STRESS: mean {s['inter_observer_stress_mean']:.1f}"
-                   + (f"  STRESS vs model ΔE00: {s['stress_vs_model']:.1f}" if s.get("stress_vs_model") is not None
-                      else "  (no --model-de: no STRESS against the model)"))
+        intra = s["intra_observer_stress_mean"]
+        inter = s["inter_observer_stress_mean"]
+        echo(f"intra-observer STRESS: mean {num(intra, '{:.1f}')}"
+             + (" (one repeat per observer: no intra-observer STRESS)" if intra is None else "")
+             + f"  inter-observer STRESS: mean {num(inter, '{:.1f}')}"
+             + (" (needs two observers and two cases)" if inter is None else "")
+             + (f"  STRESS vs model ΔE00: {s['stress_vs_model']:.1f}" if s.get("stress_vs_model") is not None
+                else "  (no --model-de: no STRESS against the model)"))
         if report is not None:
-            typer.echo(f"wrote {display_path(report)}")
+            echo(f"wrote {display_path(report)}")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from lbscene.commands.console import echo
 from lbscene.commands.options import Format, allow_path_option
+from lbscene.engine.files.textsafe import json_text
 
 #: Above this the export is refused unless --max-mb says otherwise (a browser tab holds
 #: the whole data file in memory, decoded).
@@ -68,10 +69,14 @@ def gather_inputs(source: Path, *, lightings=(), samples=(), displays=(), size=N
             raise _err("LB500", "nothing to export", expected="a render configuration or a booth, or "
                        "--session with a session that names its render_config")
         source = ses.doc.resolve(ses.model.render_config)
+    from lbscene.engine.files.yamlio import path_kind
+
     source = Path(source)
     job = None
-    is_config = source.is_file() and source.suffix.lower() in (".yaml", ".yml") and \
-        "render_config" in source.read_text(errors="replace")[:4000]
+    is_config = False
+    if path_kind(source) == "file" and source.suffix.lower() in (".yaml", ".yml"):
+        with open(source, "rb") as fh:       # the head only: a multi-GB file is not read whole here
+            is_config = b"render_config" in fh.read(4000)
     if is_config:
         job = prepare_from_config(source, allowed_dirs=allowed_dirs)
         ir = job.ir
@@ -139,8 +144,14 @@ def run_export_web(source, out: Path, *, lightings=(), samples=(), displays=(), 
     t0 = time.perf_counter()
     inp, _ = gather_inputs(Path(source) if source is not None else None, lightings=lightings, samples=samples,
                            displays=displays, size=size, session=session, allowed_dirs=tuple(allowed_dirs))
+    # the session's trials go into the data file as they are: counted before the export's work
+    session_bytes = len(json_text(inp.session).encode()) if inp.session is not None else 0
+    if session_bytes / 1e6 > max_mb:
+        raise _err("LB701", f"the session alone would hold {session_bytes / 1e6:.0f} MB of trials",
+                   value=f"{session_bytes / 1e6:.1f} MB", expected=f"at most --max-mb {max_mb:g}",
+                   hint="fewer observers, repeats or cases per session (split the panel), or raise --max-mb")
     manifest = build_export(inp, progress=progress)
-    mb = manifest["blob_bytes"] / 1e6
+    mb = (manifest["blob_bytes"] + session_bytes) / 1e6
     if mb > max_mb:
         raise _err("LB701", f"the export would hold {mb:.0f} MB of data", value=f"{mb:.1f} MB",
                    expected=f"at most --max-mb {max_mb:g}",
@@ -179,15 +190,20 @@ def register(app: typer.Typer) -> None:
         from lbscene.engine.files.load import display_path
         from lbscene.runtimes.render import parse_size
 
+        import math
+
+        if not (math.isfinite(max_mb) and max_mb > 0):
+            raise _err("LB500", "--max-mb must be a positive number of megabytes", value=f"{max_mb:g}",
+                       expected="a number > 0")
         wh = None
         if size is not None:
             try:
                 wh = parse_size(size)
             except ValueError as exc:
                 raise _err("LB500", f"--size: {exc}", value=size, expected="WIDTHxHEIGHT with each side 16..8192")
-        from rich.console import Console
+        from lbscene.commands.console import err_console
 
-        console = Console(stderr=True)
+        console = err_console()
         with console.status("export-web") as st:
             result = run_export_web(source, out, lightings=lighting or (), samples=sample or (),
                                     displays=display or (), size=wh, session=session, max_mb=max_mb,
@@ -195,9 +211,9 @@ def register(app: typer.Typer) -> None:
                                     progress=lambda m: st.update(f"export-web: {m}"))
         views = result["views"]
         if format is Format.json:
-            typer.echo(json.dumps(result, indent=2, ensure_ascii=False))
+            echo(json_text(result, indent=2))
             return
-        typer.echo(f"wrote {display_path(out)}/index.html  ({len(result['lightings'])} lighting(s), {views} views, "
+        echo(f"wrote {display_path(out)}/index.html  ({len(result['lightings'])} lighting(s), {views} views, "
                    f"{len(result['samples'])} sample(s), {len(result['displays'])} display(s); "
                    f"{result['data_file_MB']} MB; {result['elapsed_s']} s)")
-        typer.echo("open index.html in a browser with WebGL2 (works from file://; nothing is fetched)")
+        echo("open index.html in a browser with WebGL2 (works from file://; nothing is fetched)")

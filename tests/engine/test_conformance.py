@@ -28,7 +28,7 @@ def _colorimetry_of(name):
     import colour
 
     from lbscene.engine.conformance.colorimetry import colorimetry_1nm
-    from lbscene.engine.spectral import REFERENCE_WAVELENGTHS_NM as WL
+    from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM as WL
 
     sd = colour.SDS_ILLUMINANTS[name]
     return colorimetry_1nm(np.interp(WL, sd.wavelengths, sd.values, left=0.0, right=0.0))

@@ -58,8 +58,8 @@ def _render(scene, sensors, spp=SPP, passes=2):
 
 
 def _provider(booth, points):
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.truth_mitsuba import MitsubaTruth
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.mitsuba import MitsubaTruth
 
     r = MitsubaTruth(compile_booth(booth), "D65", spp=SPP, passes=2).illuminance_with_error_lx(points)
     return r.illuminance_lx, r.std_error_lx
@@ -78,7 +78,7 @@ def test_exported_xml_renders_the_providers_figures(booth, tmp_path, run_cli):
     assert len(sensors) == 55
     pick = [0, 27, 54]
     got = _render(scene, pick)
-    from lbscene.engine.forward_synthetic import a3_grid
+    from lbscene.engine.truth.synthetic import a3_grid
 
     ref, se = _provider(booth, a3_grid()[pick])
     tol = 4 * np.hypot(got[:, 1], se) + 0.005 * ref

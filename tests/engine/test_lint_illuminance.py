@@ -47,8 +47,8 @@ def _booth(tmp_path, standard, rho=0.69):
 @pytest.fixture(scope="module")
 def reference_full_lx(tmp_path_factory):
     """The sample's illuminance by the Monte Carlo reference engine (independent of the model)."""
-    from lbscene.engine.compile import compile_booth
-    from lbscene.engine.forward_reference import ReferenceEngine
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.reference import ReferenceEngine
 
     d = _booth(tmp_path_factory.mktemp("ref"), "ISO_3664_P1")
     ir = compile_booth(d)

@@ -19,7 +19,7 @@ def test_the_three_seed_booths_are_shipped():
 @pytest.mark.parametrize("booth", BOOTH_DIRS, ids=[p.name for p in BOOTH_DIRS])
 def test_booth_validates_clean(booth):
     from lbscene.engine.files.diagnostics import Severity
-    from lbscene.engine.scene.validate import validate_paths
+    from lbscene.engine.conformance.validate import validate_paths
 
     report = validate_paths([booth])
     problems = [d.format() for d in report.diagnostics if d.severity is not Severity.INFO]

@@ -229,3 +229,140 @@ def test_session_schema_errors_are_located(run_cli, tmp_path):
     code, _, err = run_cli("validate-config", bad)
     assert code == 2
     assert f"session.yaml:{line}:10: error" in err and "repeats" in err
+
+
+def _default_session(tmp_path):
+    """The test session as a user writes it first: no repeats (the default, 1), no options."""
+    for name in ("sample-gonio.yaml", "sample-grey.yaml", "tube-gonio.yaml"):
+        (tmp_path / name).write_text((DATA / name).read_text())
+    ses_file = tmp_path / "session.yaml"
+    ses_file.write_text(SESSION.read_text().replace("repeats: 2\n", ""))
+    return ses_file
+
+
+def test_visual_report_with_default_session_text_json_html(run_cli, tmp_path):
+    # repeats: 1 (the default) gives no intra-observer STRESS: the report says so instead of
+    # raising TypeError while formatting None
+    ses_file = _default_session(tmp_path)
+    ses = load_session(ses_file)
+    assert ses.model.repeats == 1
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(ses, lambda t: 4.0 if t["observer"] == "O1" else 3.5))
+    code, out, err = run_cli("visual-report", res, "--session", ses_file)
+    assert code == 0, err
+    assert ("intra-observer STRESS: mean — (one repeat per observer: no intra-observer STRESS)  "
+            "inter-observer STRESS: mean 0.0  (no --model-de: no STRESS against the model)") in out
+    code, out, err = run_cli("visual-report", res, "--session", ses_file, "--format", "json")
+    assert code == 0, err
+    import json
+
+    st = json.loads(out)
+    assert st["summary"]["intra_observer_stress_mean"] is None
+    assert st["intra_observer_stress"] == {"O1": None, "O2": None}
+    # every case: the two observers' grades 4 and 3.5 (ISO 105-A02: ΔV 1.7 and 2.5)
+    assert {(c["mean_score"], c["mean_delta_v"]) for c in st["cases"]} == {(3.75, 2.1)}
+    report = tmp_path / "report.html"
+    code, _, err = run_cli("visual-report", res, "--session", ses_file, "--report", report)
+    assert code == 0, err
+    html = report.read_text()
+    assert "<tr><td>—</td><td>0.0</td>" in html and html.count("data:image/png;base64,") == 2
+
+
+def _json_results(ses, responses):
+    import json
+
+    return json.dumps({"format": "lbscene.visual_results", "session": ses.model.name, "responses": responses})
+
+
+def _response(t, score=4.0, **kw):
+    return {"observer": t["observer"], "repeat": t["repeat"], "lighting": t["lighting"],
+            "geometry": t["geometry"], "sample": t["sample"], "score": score, "response_time_ms": 900, **kw}
+
+
+@pytest.mark.parametrize("change,expected", [
+    (lambda r: r[1].update(score=True), "results.json: error LB710: responses[1]: score must be a finite number "
+                                        "(got True; expected a finite number)"),
+    (lambda r: r[1].update(score="NaN"), "results.json: error LB710: responses[1]: score must be a finite number "
+                                         "(got 'NaN'; expected a finite number)"),
+    (lambda r: r[2].update(score=[4]), "results.json: error LB710: responses[2]: score must be a finite number "
+                                       "(got [4]; expected a finite number)"),
+    (lambda r: r[0].update(repeat=1.5), "results.json: error LB710: responses[0]: repeat must be a whole number "
+                                        "≥ 1 (got 1.5; expected a whole number ≥ 1)"),
+    (lambda r: r[0].update(sample={"x": 1}), "results.json: error LB710: responses[0]: sample must be text "
+                                             "(got {'x': 1}; expected a string)"),
+    (lambda r: r[0].pop("observer"), "results.json: error LB710: responses[0]: missing field 'observer'"),
+    (lambda r: r.__setitem__(0, "O1"), "results.json:1:1: error LB710: 'responses' must be a list of objects"),
+])
+def test_visual_results_json_with_wrong_types(run_cli, tmp_path, change, expected):
+    ses = load_session(SESSION)
+    responses = [_response(t) for t in ses.trials]
+    change(responses)
+    res = tmp_path / "results.json"
+    res.write_text(_json_results(ses, responses))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert expected in err
+
+
+def test_visual_results_nan_score_encoding_and_nesting(run_cli, tmp_path):
+    ses = load_session(SESSION)
+    res = tmp_path / "results.csv"
+    rows = _all_answers(ses, lambda t: 4)
+    rows[3][8] = "nan"                      # a NaN grade used to pass as "outside the grey scale" or not at all
+    _write_results(res, rows)
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "results.csv:5:1: error LB710: score must be a finite number (got 'nan'; expected a " \
+                         "finite number)" in err
+    _write_results(res, _all_answers(ses, lambda t: 4))
+    res.write_bytes(res.read_text().encode("utf-16"))          # an odd encoding
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "results.csv: error LB003: file contains NUL bytes: binary data, not text" in err
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"format": "lbscene.visual_results", "responses": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    code, _, err = run_cli("visual-report", deep, "--session", SESSION, cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert "deep.json:1:" in err and "error LB015: JSON nested too deeply (expected at most 64 levels)" in err
+
+
+def test_model_delta_e_must_be_finite(run_cli, tmp_path):
+    ses = load_session(SESSION)
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(ses, lambda t: 4))
+    model = tmp_path / "model.csv"
+    model.write_text("lighting,geometry,sample,delta_e00\n" + "".join(
+        f'{lt},{g},"{s}",{"inf" if i == 1 else 1.0}\n' for i, (lt, g, s) in enumerate(ses.cases)))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION, "--model-de", model, cwd=tmp_path)
+    assert code == 2 and "model.csv:3:1: error LB710: delta_e00 must be a finite number ≥ 0 (got 'inf'" in err
+
+
+def test_session_trials_are_bounded_before_they_are_planned(run_cli, tmp_path, monkeypatch):
+    # 2 observers × 2 repeats × 4 cases = 16 trials; a session of 60 000 observers (240 000 trials)
+    # wrote a 568 MB viewer: it is refused when the session is read, by every command
+    monkeypatch.setenv("LBSCENE_MAX_TRIALS", "15")
+    line = next(i for i, s in enumerate(SESSION.read_text().splitlines(), 1) if s.startswith("observers:"))
+    expected = (f"session-tube.yaml:{line + 1}:3: error LB510: trials of session 'tube-test' (2 observers × 2 repeats × "
+                "4 cases): 16 exceeds the limit of 15")
+    code, _, err = run_cli("validate-config", SESSION)
+    assert code == 2 and expected in err and "LBSCENE_MAX_TRIALS=N" in err
+    res = tmp_path / "results.csv"
+    _write_results(res, _all_answers(_unbounded_session(monkeypatch), lambda t: 4))
+    code, _, err = run_cli("visual-report", res, "--session", SESSION)
+    assert code == 2 and expected in err
+
+
+def _unbounded_session(monkeypatch):
+    monkeypatch.delenv("LBSCENE_MAX_TRIALS")
+    ses = load_session(SESSION)
+    monkeypatch.setenv("LBSCENE_MAX_TRIALS", "15")
+    return ses
+
+
+def test_export_web_counts_the_session_against_max_mb(run_cli, tmp_path):
+    code, _, err = run_cli("export-web", "--session", SESSION, "--out", tmp_path / "viewer", "--max-mb", "0.001")
+    assert code == 2
+    assert "error LB701: the session alone would hold 0 MB of trials (got 0.0 MB; expected at most --max-mb 0.001)" \
+        in err
+    assert not (tmp_path / "viewer").exists()
+    code, _, err = run_cli("export-web", "--session", SESSION, "--out", tmp_path / "viewer", "--max-mb", "0")
+    assert code == 2 and "error LB500: --max-mb must be a positive number of megabytes (got 0; expected a number " \
+                         "> 0)" in err

@@ -25,8 +25,8 @@ SKIP_DIRS = {".git", ".venv", "build", "__pycache__", "node_modules", ".pytest_c
 def _lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     """The linter's rules, then, when they find no error, the viewing-standard warnings on the
     compiled booth (a booth that does not compile: the compiler's diagnostics)."""
-    from .compile import compile_loaded
-    from .lint import illuminance_rules, lint_booth, needs_illuminance_rules
+    from lbscene.engine.scene.compile import compile_loaded
+    from lbscene.engine.scene.lint import illuminance_rules, lint_booth, needs_illuminance_rules
 
     diags = lint_booth(doc)
     if any(d.severity is Severity.ERROR for d in diags) or not needs_illuminance_rules(doc):
@@ -38,8 +38,66 @@ def _lint_booth(doc: LoadedDocument) -> list[Diagnostic]:
     return diags + illuminance_rules(doc, ir)
 
 
+def _lint_measurement_set(doc: LoadedDocument) -> list[Diagnostic]:
+    """A measurement set's data files, read as ``compare`` reads them (each problem located in
+    its file): illuminance CSVs, the white tile's spectra, measured surface reflectances.  The
+    booth's placement checks (points outside it) need the booth compiled and wait for compare."""
+    from lbscene.engine.loop.measurements import _shown, _tile_column, read_illuminance_csv
+    from lbscene.engine.spectra.evaluate import evaluate_spectrum
+
+    m = doc.model
+    out: list[Diagnostic] = []
+    for f in m.illuminance:
+        p = doc.resolve(f.path)
+        try:
+            _, diags = read_illuminance_csv(p, display_path(p), default_z_mm=f.z_mm,
+                                            default_orientation=f.orientation)
+        except LbsceneUserError as exc:
+            diags = exc.diagnostics
+        out += diags
+    spectra = [(spec, "reflectance", f"surface_reflectances.{mid}") for mid, spec in m.surface_reflectances.items()]
+    if m.white_tile is not None:
+        spectra += [(m.white_tile.radiance, "emission", "white_tile.radiance"),
+                    (m.white_tile.reflectance, "reflectance", "white_tile.reflectance")]
+    for spec, kind, what in spectra:
+        try:
+            if what == "white_tile.radiance":
+                spec = _tile_column(spec, doc.resolve)
+            evaluate_spectrum(spec, doc.resolve, kind, display=_shown(doc, spec, what))
+        except LbsceneUserError as exc:
+            out += exc.diagnostics
+    return out
+
+
+def _lint_render_config(doc: LoadedDocument) -> list[Diagnostic]:
+    """The work a render configuration asks for: the pixels of one view (``LB510``)."""
+    from lbscene.engine.files.limits import check_work
+
+    out = doc.model.output
+    try:
+        check_work("pixels", out.width_px * out.height_px, doc.locate("output", "width_px"),
+                   what=f"pixels of one view ({out.width_px}x{out.height_px})")
+    except LbsceneUserError as exc:
+        return exc.diagnostics
+    return []
+
+
+def _lint_visual_session(doc: LoadedDocument) -> list[Diagnostic]:
+    """A visual session as ``export-web`` and ``visual-report`` load it: the number of trials
+    (``LB510``, before they are planned), its sample documents, distinct sample names."""
+    from lbscene.engine.visual.protocol import load_session
+
+    try:
+        load_session(doc.path, doc.refs.allowed_dirs)
+    except LbsceneUserError as exc:
+        return exc.diagnostics
+    return []
+
+
 #: kind → semantic rules run after schema validation (other modules may add theirs).
-LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {"booth": _lint_booth}
+LINTERS: dict[str, Callable[[LoadedDocument], list[Diagnostic]]] = {
+    "booth": _lint_booth, "measurement_set": _lint_measurement_set, "render_config": _lint_render_config,
+    "visual_session": _lint_visual_session}
 
 
 @dataclass
@@ -69,23 +127,33 @@ class ValidationReport:
 
 def collect_documents(paths: Iterable[Path]) -> tuple[list[Path], list[Diagnostic]]:
     """Files to validate: files as given, folders searched for *.yaml."""
+    from lbscene.engine.files.yamlio import path_kind
+
     out, diags = [], []
     for p in paths:
         p = Path(p)
-        if p.is_dir():
+        try:
+            kind = path_kind(p)
+        except LbsceneUserError as exc:
+            diags += exc.diagnostics
+            continue
+        if kind == "dir":
             found = sorted(f for f in p.rglob("*.yaml")
                            if not any(part in SKIP_DIRS for part in f.relative_to(p).parts[:-1]))
             if not found:
                 diags.append(Diagnostic("LB011", "no .yaml documents in this folder",
                                         SourceLocation(display_path(p))))
             out.extend(found)
-        elif p.exists():
+        elif kind != "missing":
             out.append(p)
         else:
             diags.append(Diagnostic("LB010", "file not found", SourceLocation(str(p))))
     seen, unique = set(), []
     for f in out:
-        key = f.resolve()
+        try:
+            key = f.resolve()
+        except (OSError, RuntimeError):   # a loop under a folder: validate_file locates it
+            key = f
         if key not in seen:
             seen.add(key)
             unique.append(f)
