@@ -10,6 +10,7 @@ interrupted run never leaves a half-written history.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import time
@@ -55,14 +56,21 @@ def read_history(path: Path) -> list[dict]:
     A path that exists but cannot be read (not a regular file, no permission, too large) is a
     located error, not an empty history.
     """
+    return _parse_history(_history_bytes(Path(path)))
+
+
+def _history_bytes(path: Path) -> bytes | None:
+    """The history file's bytes (None when there is none), read with the usual bounds."""
     from .yamlio import read_bytes_bounded
 
-    path = Path(path)
     if not os.path.lexists(path):
-        return []
-    raw = read_bytes_bounded(path, str(path), MAX_HISTORY_BYTES, is_input=False)
+        return None
+    return read_bytes_bounded(path, str(path), MAX_HISTORY_BYTES, is_input=False)
+
+
+def _parse_history(raw: bytes | None) -> list[dict]:
     out = []
-    for line in raw.decode("utf-8", errors="replace").splitlines():
+    for line in (raw or b"").decode("utf-8", errors="replace").splitlines():
         line = line.strip()
         if not line:
             continue
@@ -115,8 +123,9 @@ def append_history(path: Path, entry: dict) -> dict:
     from .outputs import write_output
 
     path = Path(path)
-    old = read_history(path)
-    if path.exists() and not _is_history(path, old):
+    raw = _history_bytes(path)
+    old = _parse_history(raw)
+    if raw is not None and not _is_history(path, old):
         raise LbsceneUserError.single(
             "LB611", "history file exists and is not an lbscene history; it is left as it is", str(path),
             expected="an lbscene history (JSON lines)", hint="move it away, or run with --no-history")
@@ -125,7 +134,9 @@ def append_history(path: Path, entry: dict) -> dict:
     entry["step"] = (old[-1].get("step", len(old)) + 1) if old else 1
     entry["label"] = change_label(old[-1] if old else None, entry)
     lines = [json.dumps(e, sort_keys=True, ensure_ascii=False) for e in old + [entry]]
-    write_output(path, "\n".join(lines) + "\n")
+    # rewritten only if it still holds what was read here (a line appended meanwhile is not lost)
+    write_output(path, "\n".join(lines) + "\n",
+                 replace_if_sha256=hashlib.sha256(raw).hexdigest() if raw is not None else None)
     return entry
 
 

@@ -119,6 +119,8 @@ MANIFEST_NAME = "manifest.json"
 _MAX_LEDGER_BYTES = 4 * 1024 * 1024
 #: Bound on a manifest's size.
 _MAX_MANIFEST_BYTES = 64 * 1024 * 1024
+#: Folders deeper than this inside an output folder are not lbscene's (and are not descended into).
+_MAX_DEPTH = 32
 #: ``errno`` values of a full disk or an exhausted quota.
 NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
 
@@ -643,6 +645,9 @@ def _scan_dir(fd: int, parts: tuple[str, ...], manifests: list, out: TreeScan, l
         if not parts:
             out.entries += 1
         if stat.S_ISDIR(st.st_mode):
+            if len(parts) >= _MAX_DEPTH:         # no lbscene product is this deep
+                out.foreign.append(rel + "/…")
+                continue
             try:
                 sub = os.open(e.name, _O_DIR | os.O_NOFOLLOW, dir_fd=fd)
             except OSError:

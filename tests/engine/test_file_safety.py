@@ -669,3 +669,82 @@ def test_a_folder_that_appears_during_the_build_is_kept(minimal_booth, tmp_path,
     assert code == 2
     assert "error LB611: --out: folder exists and is not an lbscene output" in err
     assert sorted(os.listdir(out)) == ["mine.txt"]
+
+
+def test_a_very_deep_folder_inside_a_build_is_refused_without_a_crash(minimal_booth, tmp_path, run_cli):
+    out = tmp_path / "b"
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0
+    deep = out
+    for _ in range(200):
+        deep = deep / "d"
+    deep.mkdir(parents=True)
+    (deep / "x.txt").write_text("deep")
+    code, _, err = run_cli("build", minimal_booth, "--out", out)
+    assert code == 2
+    _no_traceback(err)
+    assert "error LB611: --out: folder holds files lbscene did not write; it is left as it is (got " in err
+    assert (deep / "x.txt").read_text() == "deep"
+
+
+def test_a_history_lbscene_wrote_before_the_ledger_is_still_appended_to(meas_set, run_cli):
+    h = meas_set.with_name("meas.history.jsonl")
+    assert run_cli("compare", meas_set, "--no-diagnose")[0] == 0
+    (meas_set.parent / LEDGER_NAME).unlink()                 # a history from before the ledger
+    code, _, err = run_cli("compare", meas_set, "--no-diagnose")
+    assert code == 0, err
+    assert [json.loads(x)["step"] for x in h.read_text().splitlines()] == [1, 2]
+
+
+@pytest.fixture(params=["renameat2", "no_renameat2"])
+def rename_kind(request, monkeypatch):
+    """Run a test with ``renameat2`` and as on a system without it (link + unlink, checked replace)."""
+    if request.param == "no_renameat2":
+        from lbscene.engine import outputs
+
+        monkeypatch.setattr(outputs, "_renameat2", lambda *a: False)
+    return request.param
+
+
+def test_write_time_checks_with_and_without_renameat2(tmp_path, rename_kind):
+    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.outputs import write_output
+
+    out = tmp_path / "r.json"
+    write_output(out, "one")
+    write_output(out, "two")                                  # its own: replaced
+    assert out.read_text() == "two"
+    out.write_text("the user's now")
+    with pytest.raises(LbsceneUserError) as ei:
+        write_output(out, "three")
+    assert ei.value.diagnostics[0].code == "LB611"
+    new = tmp_path / "new.json"
+    new.write_text("appeared")                              # not there when the command started
+    with pytest.raises(LbsceneUserError):
+        write_output(new, "lbscene's")
+    assert out.read_text() == "the user's now" and new.read_text() == "appeared"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER_NAME, "new.json", "r.json"]
+
+
+def test_folder_swaps_with_and_without_renameat2(minimal_booth, tmp_path, run_cli, monkeypatch, rename_kind):
+    from lbscene.engine import build as build_mod
+
+    out = tmp_path / "b"
+    for level in (1000, 1200):                                # new, then replacing its own
+        f = minimal_booth / "booth.yaml"
+        f.write_text(f.read_text().replace("value_cd: 1000", f"value_cd: {level}"))
+        code, _, err = run_cli("build", minimal_booth, "--out", out)
+        assert code == 0, err
+    ir_hash = json.loads((out / "manifest.json").read_text())["ir_hash"]
+
+    def user_saves_a_file(name):
+        if name == "build-finish":
+            (out / "saved-meanwhile.txt").write_text("mine")
+
+    monkeypatch.setattr(build_mod, "fault_point", user_saves_a_file)
+    f = minimal_booth / "booth.yaml"
+    f.write_text(f.read_text().replace("value_cd: 1200", "value_cd: 1300"))
+    code, _, err = run_cli("build", minimal_booth, "--out", out)
+    assert code == 2 and "saved-meanwhile.txt" in err
+    assert (out / "saved-meanwhile.txt").read_text() == "mine"
+    assert json.loads((out / "manifest.json").read_text())["ir_hash"] == ir_hash
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".b.")) == []
