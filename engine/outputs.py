@@ -913,11 +913,13 @@ def _commit_file(src_fd, src, dst_fd, dst, shown, may_replace, option, location)
     os.replace(src, dst, src_dir_fd=src_fd, dst_dir_fd=dst_fd)
 
 
-def _ledger_may_replace(name: str) -> Callable[[int, str], bool]:
-    """``may_replace`` for an output recorded in its folder's ledger under ``name``."""
+def _ledger_may_replace(name: str, ledger_fd: int) -> Callable[[int, str], bool]:
+    """``may_replace`` for an output recorded under ``name`` in the ledger of the folder
+    ``ledger_fd`` (the target's folder, wherever the file being checked lies: after an exchange
+    the displaced file is checked at the temporary's place)."""
 
     def check(dir_fd: int, at: str) -> bool:
-        files, mtime_ns = _read_ledger(None, dir_fd=dir_fd)
+        files, mtime_ns = _read_ledger(None, dir_fd=ledger_fd)
         entry = files.get(name)
         return bool(entry) and _mismatch(at, dir_fd, entry.get("sha256"), entry.get("size"), mtime_ns) is None
 
@@ -1072,13 +1074,13 @@ def write_output(path: Path | str, data: bytes | str, *, option: str | None = No
     _check_not_input(path, option, location)
     _mkdirs(path.parent, option)
     clean_leftovers(path.parent, path.name)
-    if replace_if_sha256 is not None:
-        def may_replace(dir_fd: int, name: str) -> bool:
-            return _mismatch(name, dir_fd, replace_if_sha256) is None
-    else:
-        may_replace = _ledger_may_replace(path.name)
     try:
         with _dir_fd(path.parent) as dfd:
+            if replace_if_sha256 is not None:
+                def may_replace(dir_fd: int, name: str) -> bool:
+                    return _mismatch(name, dir_fd, replace_if_sha256) is None
+            else:
+                may_replace = _ledger_may_replace(path.name, dfd)
             tmp = _tmp_name(path, suffix=".tmp").name
             fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=dfd)
             try:
@@ -1151,7 +1153,7 @@ def output_path(path: Path | str, suffix: str = ".tmp", *, option: str | None = 
                 finally:
                     os.close(fd)
                 commit_file(pfd, inner.name, dfd, path.name, shown=path,
-                            may_replace=_ledger_may_replace(path.name), option=option, location=location)
+                            may_replace=_ledger_may_replace(path.name, dfd), option=option, location=location)
         except OSError as exc:
             err = _write_error(exc, path, option, location)
             if err is None:

@@ -748,3 +748,22 @@ def test_folder_swaps_with_and_without_renameat2(minimal_booth, tmp_path, run_cl
     assert (out / "saved-meanwhile.txt").read_text() == "mine"
     assert json.loads((out / "manifest.json").read_text())["ir_hash"] == ir_hash
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".b.")) == []
+
+
+def test_a_writers_output_replaces_its_own_earlier_output(tmp_path, rename_kind):
+    """The file a path-needing writer replaces is checked against the ledger of the target's folder
+    (after the exchange it lies in the writer's private folder)."""
+    from lbscene.engine.diagnostics import LbsceneUserError
+    from lbscene.engine.outputs import output_path
+
+    out = tmp_path / "x.npy"
+    for value in (1.0, 2.0):
+        with output_path(out, suffix=".npy", option="--xyz") as tmp:
+            np.save(tmp, np.full(3, value))
+    np.testing.assert_array_equal(np.load(out), np.full(3, 2.0))
+    np.save(out, np.zeros(3))                                    # the user's now
+    with pytest.raises(LbsceneUserError):
+        with output_path(out, suffix=".npy", option="--xyz") as tmp:
+            np.save(tmp, np.full(3, 3.0))
+    np.testing.assert_array_equal(np.load(out), np.zeros(3))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER_NAME, "x.npy"]
