@@ -469,6 +469,7 @@ def _probe_parent(path: Path, option: str | None, location) -> None:
             raise _err("LB610", f"cannot write here: {str(anc)!r} is a file, not a folder", path, option,
                        location, expected="a path whose parents are folders")
         break
+    clean_leftovers(anc, "lbscene-probe")
     probe = _tmp_name(anc / "lbscene-probe")
     try:
         fd = os.open(probe, _O_CREATE, 0o600)
@@ -983,6 +984,7 @@ def _record(path: Path, sha256: str, size: int, command: str | None = None) -> N
     the output is then not recorded, and a later run will not replace it.
     """
     folder = path.parent
+    clean_leftovers(folder, LEDGER_NAME)
     with _folder_lock(folder) as fd:
         try:
             st = os.stat(LEDGER_NAME, dir_fd=fd, follow_symlinks=False)

@@ -767,3 +767,26 @@ def test_a_writers_output_replaces_its_own_earlier_output(tmp_path, rename_kind)
             np.save(tmp, np.full(3, 3.0))
     np.testing.assert_array_equal(np.load(out), np.zeros(3))
     assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER_NAME, "x.npy"]
+
+
+def test_a_build_folder_another_lbscene_run_is_writing_into_is_left_alone(minimal_booth, tmp_path, run_cli):
+    from lbscene.engine.outputs import process_token
+
+    out = tmp_path / "b"
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0
+    (out / "bake").mkdir()
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        busy = out / "bake" / f".A.lbtmp-{sleeper.pid}-{process_token(sleeper.pid)}-abcd1234"
+        busy.mkdir()                                           # a bake of a run still going
+        (busy / "pts.exr").write_text("half")
+        code, _, err = run_cli("build", minimal_booth, "--out", out)
+        assert code == 2
+        assert (f"{out}: error LB611: --out: folder is being written by another lbscene run; it is left as it is "
+                f"(got bake/{busy.name}; expected no lbscene run writing into it)") in err
+        assert (busy / "pts.exr").read_text() == "half"
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0       # once it is gone, its leftover goes
+    assert not busy.exists()
