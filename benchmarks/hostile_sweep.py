@@ -116,7 +116,27 @@ def workspace(tmp: Path) -> dict:
     shutil.copytree(booth, atsample)
     (atsample / "booth.yaml").write_text(text.replace("position_mm: [0, 0, 700]", "position_mm: [0, 0, 0]"))
     ws["lamp_at_sample"] = atsample
-    ws["protected"] = [booth, m, cfg, user, ws["user_file"], many, atsample, big]
+    # files of the user's named like old temporaries, beside an output lbscene writes
+    for name in (".r.json.old-1", ".r.json.12345678.tmp"):
+        (tmp / name).write_text("the user's backup")
+        os.utime(tmp / name, (1_000_000_000, 1_000_000_000))
+    (tmp / ".r.json.tmp-mywork").mkdir()
+    (tmp / ".r.json.tmp-mywork" / "x.txt").write_text("mine")
+    os.utime(tmp / ".r.json.tmp-mywork", (1_000_000_000, 1_000_000_000))
+    # a cache folder holding the user's own .npy files and a FIFO where the index goes
+    cache = tmp / "cache"
+    (cache / "mine").mkdir(parents=True)
+    np.save(cache / "mine" / "results.npy", np.arange(1000.0))
+    os.mkfifo(cache / "lbscene-cache-index.json")
+    ws["cache"] = cache
+    # an earlier web export in which the user saved notes
+    viewer = tmp / "viewer"
+    subprocess.run([sys.executable, "-m", "lbscene", "export-web", str(booth), "--out", str(viewer)],
+                   capture_output=True, check=True, cwd=tmp)
+    (viewer / "notes.txt").write_text("what I saw")
+    ws["viewer"] = viewer
+    ws["protected"] = [booth, m, cfg, user, ws["user_file"], many, atsample, big, cache, viewer,
+                       tmp / ".r.json.old-1", tmp / ".r.json.12345678.tmp", tmp / ".r.json.tmp-mywork"]
     return ws
 
 
@@ -170,6 +190,11 @@ def cases(ws: dict, quick: bool) -> list[tuple[str, list, dict]]:
         ("render --size 0x0", ["render", cfg, "--no-input", "--size", "0x0"], {}),
         ("plan --points 0", ["plan", meas, "--points", "0"], {}),
         ("history of a fifo", ["history", ws["fifo"]], {}),
+        ("compare --json-out beside old-named files", ["compare", meas, "--no-diagnose", "--no-history",
+                                                      "--json-out", "r.json"], {}),
+        ("cache of the user's .npy, tiny bound", ["compare", meas, "--no-history"],
+         {"LBSCENE_CACHE_DIR": str(ws["cache"]), "LBSCENE_CACHE_MAX_MB": "0.001"}),
+        ("export-web over an export with notes", ["export-web", b, "--out", ws["viewer"]], {}),
     ]
     return out
 
@@ -217,6 +242,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer cases (no plan/history/accuracy/bake rows)")
     ap.add_argument("--kills", type=int, default=8)
+    ap.add_argument("--only", default="", help="run only the cases whose label holds this text")
     a = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="lbscene-sweep-"))
     try:
@@ -224,6 +250,8 @@ def main() -> int:
         before = _digest(ws["protected"])
         rows = []
         for label, args, env in cases(ws, a.quick):
+            if a.only not in label:
+                continue
             r = run_case(args, env, tmp)
             now = _digest(ws["protected"])
             lost = sorted(k for k in before if before[k] != now.get(k))
