@@ -9,6 +9,12 @@ Local executor: run bake jobs one after another, each in its own process.
   could not remove it itself.
 * **Resume**: after an interruption, running the same list again skips the
   finished jobs (cache hits) and bakes the rest.
+* **Children end with the command**: a child runs in its own process group,
+  which is stopped (SIGTERM, then SIGKILL) when the command is stopped; it also
+  gets SIGKILL from the kernel when the command dies any other way, SIGKILL
+  included (:func:`lbscene.engine.files.processes.dies_with_parent`).  The job file
+  given to the child is named in lbscene's temporary pattern, so what a killed
+  run leaves is removed by the next one and never makes a build refuse the folder.
 * A rich progress bar follows the children's progress lines.
 
 Examples
@@ -26,7 +32,6 @@ import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,10 +62,10 @@ class TaskResult:
 
 
 def _manifest(out_dir: Path) -> dict | None:
-    try:
-        return json.loads((Path(out_dir) / "manifest.json").read_text())
-    except (OSError, ValueError):
-        return None
+    from lbscene.engine.files.outputs import read_manifest
+
+    got = read_manifest(Path(out_dir))          # a regular file of this user, read without blocking
+    return got[0] if got is not None else None
 
 
 def is_cached(job: BakeJob, out_dir: Path) -> dict | None:
@@ -93,7 +98,28 @@ def _child_env() -> dict:
     return env
 
 
+def _child_command(job_path: Path, out_dir: Path) -> list[str]:
+    """The command line of the child process that bakes ``job_path`` into ``out_dir``."""
+    return [sys.executable, "-m", "lbscene.bakers.run_job", str(job_path), str(out_dir)]
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """Stop a child and everything it started (its process group): SIGTERM, then SIGKILL."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=10)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
+
+
 def _run_child(task: BakeTask, on_progress: Callable[[int, int, str], None]) -> TaskResult:
+    from lbscene.engine.files.outputs import temporary_name
+    from lbscene.engine.files.processes import dies_with_parent
+
     from .run_job import PROGRESS_PREFIX
 
     out_dir = Path(task.out_dir).resolve()
@@ -102,18 +128,18 @@ def _run_child(task: BakeTask, on_progress: Callable[[int, int, str], None]) -> 
     job_path = task.job_path
     tmp_job = None
     if job_path is None or not Path(job_path).is_file():
-        fd, name = tempfile.mkstemp(prefix=f".{out_dir.name}.job-", suffix=".json", dir=out_dir.parent)
-        os.close(fd)
-        tmp_job = Path(name)
+        tmp_job = temporary_name(out_dir, suffix=".json")     # removed below, or by a later run
         save_job(task.job, tmp_job)
         job_path = tmp_job
-    cmd = [sys.executable, "-m", "lbscene.bakers.run_job", str(job_path), str(out_dir)]
     t0 = time.perf_counter()
     tail: collections.deque[str] = collections.deque(maxlen=40)
     error = None
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            bufsize=1, env=_child_env(), start_new_session=True)
+    proc = None
     try:
+        # (a child started in a process stopped before `proc` is set ends with it: dies_with_parent)
+        proc = subprocess.Popen(dies_with_parent(_child_command(job_path, out_dir)), stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, bufsize=1, env=_child_env(),
+                                start_new_session=True)
         assert proc.stdout is not None
         for line in proc.stdout:
             if line.startswith(PROGRESS_PREFIX):
@@ -130,15 +156,8 @@ def _run_child(task: BakeTask, on_progress: Callable[[int, int, str], None]) -> 
         rc = proc.wait()
     except BaseException:
         # interrupted: stop the child and everything it started, then leave nothing behind
-        try:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=10)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            proc.wait()
+        if proc is not None:
+            _stop(proc)
         clean_stale_temps(out_dir)
         raise
     finally:

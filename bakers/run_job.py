@@ -39,8 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
     args = ap.parse_args(argv)
 
-    from lbscene.engine.files.atomic import atomic_replace_dir
     from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.files.outputs import replace_dir
 
     from .job import load_job
 
@@ -61,7 +61,13 @@ def main(argv: list[str] | None = None) -> int:
 
         manifest = bake_job(job, tmp, progress=lambda d, t, what: _emit(done=d, total=t, what=what),
                             save_blend=not args.no_blend)
-        atomic_replace_dir(tmp, out_dir)
+        replace_dir(tmp, out_dir)      # only over a bake folder that is lbscene's and unchanged
+    except LbsceneUserError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        for d in exc.diagnostics:
+            print(d.format(), file=sys.stderr)
+        _emit(event="error", message="; ".join(d.format() for d in exc.diagnostics))
+        return 2
     except BaseException as exc:  # noqa: BLE001 - report anything, leave nothing half-written
         shutil.rmtree(tmp, ignore_errors=True)
         tb = traceback.format_exc()

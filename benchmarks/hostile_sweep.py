@@ -541,6 +541,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer cases (no plan/history/accuracy/bake rows)")
     ap.add_argument("--kills", type=int, default=8)
+    ap.add_argument("--only", default="", help="run only the cases whose label holds this text")
     a = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="lbscene-sweep-"))
     try:
@@ -549,6 +550,8 @@ def main() -> int:
         before = _digest(ws["protected"])
         rows = []
         for label, args, env, opts in cases(ws, a.quick):
+            if a.only not in label:
+                continue
             r = run_case(args, env, tmp, opts.get("fsize"))
             now = _digest(ws["protected"])
             lost = sorted(k for k in before if before[k] != now.get(k))

@@ -6,7 +6,10 @@ Each command lives in ``lbscene/commands/<name>.py`` and exposes
 moderngl) inside the command function so ``lbscene --help`` stays fast.
 
 User mistakes raise :class:`~lbscene.engine.files.diagnostics.LbsceneUserError`; they
-are printed as located diagnostics and the process exits with code 2.
+are printed as located diagnostics and the process exits with code 2.  SIGTERM,
+SIGINT and SIGHUP stop a command through its clean-up code (temporaries removed,
+child processes stopped: :mod:`lbscene.engine.files.processes`); the exit code is then
+``128 + signal number``.
 """
 
 from __future__ import annotations
@@ -116,6 +119,17 @@ def main(argv: list[str] | None = None) -> int:
     """
     _tolerant_streams()
     argv = list(sys.argv[1:] if argv is None else argv)
+    from lbscene.engine.files.processes import Stopped, stop_on_signals
+
+    try:
+        with stop_on_signals():
+            return _main(argv)
+    except Stopped as exc:
+        print(f"lbscene: stopped by {exc}; its temporary files were removed", file=sys.stderr)
+        return exc.exit_code
+
+
+def _main(argv: list[str]) -> int:
     as_json = _wants_json(argv)
     _tolerant_streams()
     from lbscene.engine.files.outputs import INPUTS
@@ -171,6 +185,17 @@ def main(argv: list[str] | None = None) -> int:
                 _json_errors([Diagnostic("LB500", exc.format_message())])
                 return 2
             exc.show()
+            return 2
+        from lbscene.engine.files.outputs import NO_SPACE_ERRNOS, no_space_error
+
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE_ERRNOS:
+            # a full disk in a writer that does not say which output: still a located error, no traceback
+            diags = no_space_error(exc.filename or "(output)", None, exc).diagnostics
+            if as_json:
+                _json_errors(diags)
+            else:
+                print_diagnostics(diags)
+                print("1 error", file=sys.stderr)
             return 2
         raise
     return int(rc or 0)

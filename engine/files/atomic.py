@@ -3,11 +3,11 @@ Atomic file output: a file or folder appears complete or not at all.
 
 Every writer in lbscene goes through here, so an interrupted command never
 leaves a half-written product and the previous output survives until the new
-one is complete.  Temporary files are siblings of the target (same file
-system, so ``os.replace`` is atomic) and get the permissions an ordinary
-``open()`` would have given (0666 / 0777 minus the umask): ``mkstemp`` and
-``mkdtemp`` create them private (0600 / 0700), which would leave reports and
-build folders unreadable to the rest of a team.
+one is complete.  Temporaries lie beside the target (same file system, so the
+final rename is atomic), are created exclusively and written through their
+descriptor (or, for writers that need a path, inside a private ``0700`` folder),
+and get the permissions an ordinary ``open()`` would have given (0666 / 0777
+minus the umask) only when they are moved into place.
 
 Examples
 --------
@@ -25,49 +25,80 @@ b'x'
 from __future__ import annotations
 
 import os
+import shutil
+import stat
+import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from .outputs import _tmp_name, _umask, clean_leftovers, replace_dir, temporary_dir_for
+from .outputs import (_O_CREATE, _O_NOFOLLOW_READ, _dir_fd, _own_regular_file, _tmp_name, _tmp_prefix,
+                      _umask, _write_all, clean_leftovers, commit_file, replace_dir, temporary_dir_for)
 
 __all__ = ["atomic_path", "write_atomic", "temporary_dir_for", "atomic_replace_dir"]
 
 
 @contextmanager
 def atomic_path(path: Path | str, suffix: str = ".tmp") -> Iterator[Path]:
-    """Yield a temporary sibling of ``path``; on success it replaces ``path``.
+    """Yield a path to write; on success the file written there replaces ``path``.
 
     ``suffix`` lets writers that infer the format from the name (``np.save``,
-    matplotlib) see the right extension.  On any exception the temporary file
-    is removed and ``path`` is left as it was.  The temporary's name carries the
-    process id, so a later run can remove what a killed one left
-    (:func:`lbscene.engine.files.outputs.clean_leftovers`).
+    matplotlib) see the right extension.  The path lies in a private folder (``0700``,
+    named in lbscene's temporary pattern) inside ``path``'s folder, so that nobody else can
+    swap it for a link; what the writer leaves must be a regular file.  On any exception
+    ``path`` is left as it was and nothing is left behind; a later run removes what a killed
+    one left (:func:`lbscene.engine.files.outputs.clean_leftovers`).
 
-    This is for lbscene's own files (caches, bake products); outputs a user names go
-    through :mod:`lbscene.engine.files.outputs`, which also checks and records them.
+    This is for lbscene's own files (bake products, job files, generated schemas): an existing
+    regular file of the current user is replaced; a link, a folder or another user's file in
+    its place is not (``LB611``).  Outputs a user names go through
+    :mod:`lbscene.engine.files.outputs`, which also checks them against the folder's ledger.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_leftovers(path.parent, path.name)
-    tmp = _tmp_name(path, suffix=suffix)
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    private = Path(tempfile.mkdtemp(prefix=_tmp_prefix(path), dir=path.parent))
+    inner = private / f"output{suffix}"
     try:
-        yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+        yield inner
+        with _dir_fd(private) as pfd, _dir_fd(path.parent) as dfd:
+            fd = os.open(inner.name, _O_NOFOLLOW_READ, dir_fd=pfd)
+            try:
+                if not stat.S_ISREG(os.fstat(fd).st_mode):
+                    raise OSError(f"{path}: the writer did not leave a regular file")
+                os.fchmod(fd, 0o666 & ~_umask())
+            finally:
+                os.close(fd)
+            commit_file(pfd, inner.name, dfd, path.name, shown=path, may_replace=_own_regular_file)
+    finally:
+        shutil.rmtree(private, ignore_errors=True)
 
 
 def write_atomic(path: Path | str, data: bytes | str) -> None:
-    """Write ``data`` (str as UTF-8) to ``path`` atomically."""
+    """Write ``data`` (str as UTF-8) to ``path`` atomically, through the descriptor of an
+    exclusively created temporary (see :func:`atomic_path` for what may be replaced)."""
     raw = data.encode("utf-8") if isinstance(data, str) else data
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(raw)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    clean_leftovers(path.parent, path.name)
+    with _dir_fd(path.parent) as dfd:
+        tmp = _tmp_name(path, suffix=".tmp").name
+        fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=dfd)
+        try:
+            try:
+                _write_all(fd, raw)
+                os.fchmod(fd, 0o666 & ~_umask())
+            finally:
+                os.close(fd)
+            commit_file(dfd, tmp, dfd, path.name, shown=path, may_replace=_own_regular_file)
+        finally:
+            try:
+                os.unlink(tmp, dir_fd=dfd)
+            except FileNotFoundError:
+                pass
 
 
-def atomic_replace_dir(tmp_dir: Path | str, out_dir: Path | str) -> None:
-    """Move a finished folder into place, replacing ``out_dir`` (the old one is kept until then)."""
-    replace_dir(tmp_dir, out_dir)
+def atomic_replace_dir(tmp_dir: Path | str, out_dir: Path | str, *, option: str | None = None) -> None:
+    """Move a finished folder into place, replacing ``out_dir`` only if every file in it is
+    lbscene's and unchanged (:func:`lbscene.engine.files.outputs.replace_dir`)."""
+    replace_dir(tmp_dir, out_dir, option=option)

@@ -16,22 +16,50 @@ not help the edit → compare loop; this one keeps them on disk.
   that fails to load is recomputed and rewritten.  The folder is kept under
   ``$LBSCENE_CACHE_MAX_MB`` (default 2048) by removing the least recently used.
 * A cache that cannot be written (read-only home, full disk) only costs time.
+
+What the cache touches (the folder may hold anything else):
+
+* It **deletes and replaces only entries it wrote**, recorded in its index
+  ``lbscene-cache-index.json`` (entry name, device, inode, size): a file is removed
+  (over the size bound) or replaced (when damaged) only while it is still the
+  very file the cache wrote, checked again after moving it aside.  A file of
+  another name, or one put under an entry's name by someone else, is left alone;
+  so are entries of earlier lbscene versions (no index: remove the folder by
+  hand).  An index that is not a regular file of the current user disables
+  writing.
+* It **reads without blocking and without trusting the header**: an entry is
+  opened ``O_NONBLOCK | O_NOFOLLOW`` and used only if it is a regular file (a FIFO
+  is skipped at once), its ``.npy`` header names a numeric dtype and a shape whose
+  byte size is exactly what the file holds after the header and at most the
+  cache's size bound — checked before anything is allocated.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
+import json
+import math
 import os
+import re
+import stat
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "array_key"]
+__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "INDEX_NAME", "array_key"]
 
 #: bump when a cached computation changes its result for the same inputs
 FORMAT = "lbscene-geometry-1"
 DEFAULT_MAX_MB = 2048
+#: The cache's record of the entries it wrote (the only files it ever deletes or replaces).
+INDEX_NAME = "lbscene-cache-index.json"
+_MAX_INDEX_BYTES = 32 * 2 ** 20
+_KIND_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+_ENTRY_RE = re.compile(r"^(?P<kind>[A-Za-z0-9_-]{1,64})/(?P<name>[0-9a-f]{40}\.npy)$")
+_O_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+_O_DIR = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 
 
 def array_key(*arrays) -> str:
@@ -63,14 +91,121 @@ def _key(kind: str, arrays: tuple, params: tuple) -> str:
     return h.hexdigest()
 
 
-def _prune(root: Path, max_bytes: int) -> None:
-    files = [(p.stat().st_atime, p.stat().st_size, p) for p in root.glob("*/*.npy")]
-    total = sum(s for _, s, _ in files)
-    for _, size, p in sorted(files, key=lambda t: t[0]):
-        if total <= max_bytes:
-            break
-        p.unlink(missing_ok=True)
-        total -= size
+def _read_index(root_fd: int) -> dict[str, dict] | None:
+    """The index's entries (``kind/key.npy`` → ``{dev, ino, size}``); ``{}`` without an index (or
+    with a damaged one of the current user's), None when the index is not the cache's (not a
+    regular file of the current user): nothing may be written or deleted then."""
+    try:
+        fd = os.open(INDEX_NAME, _O_READ, dir_fd=root_fd)
+    except FileNotFoundError:
+        return {}
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid() or st.st_size > _MAX_INDEX_BYTES:
+            return None
+        with os.fdopen(os.dup(fd), "rb") as f:
+            d = json.loads(f.read(_MAX_INDEX_BYTES + 1))
+        entries = d.get("entries") if isinstance(d, dict) else None
+        if not isinstance(entries, dict):
+            return {}
+        return {k: v for k, v in entries.items() if _ENTRY_RE.match(k) and isinstance(v, dict)
+                and all(isinstance(v.get(f), int) for f in ("dev", "ino", "size"))}
+    except (OSError, ValueError):
+        return {}
+    finally:
+        os.close(fd)
+
+
+def _write_index(root: Path, root_fd: int, entries: dict[str, dict]) -> None:
+    from .outputs import _O_CREATE, _own_regular_file, _tmp_name, _umask, _write_all, commit_file
+
+    text = json.dumps({"about": "entries written by lbscene's geometry cache; the only files it deletes "
+                                "or replaces", "format": FORMAT, "entries": dict(sorted(entries.items()))},
+                      indent=0) + "\n"
+    tmp = _tmp_name(root / INDEX_NAME, suffix=".tmp").name
+    fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=root_fd)
+    try:
+        try:
+            _write_all(fd, text.encode())
+            os.fchmod(fd, 0o666 & ~_umask())
+        finally:
+            os.close(fd)
+        commit_file(root_fd, tmp, root_fd, INDEX_NAME, shown=root / INDEX_NAME, may_replace=_own_regular_file)
+    finally:
+        try:
+            os.unlink(tmp, dir_fd=root_fd)
+        except FileNotFoundError:
+            pass
+
+
+def _is_entry(dir_fd: int, name: str, rec: dict | None) -> bool:
+    """Whether ``name`` is still the very file the index recorded (a regular file of this user, the
+    same device and inode: written over in place it is still the cache's own file)."""
+    if not rec:
+        return False
+    try:
+        st = os.stat(name, dir_fd=dir_fd, follow_symlinks=False)
+    except OSError:
+        return False
+    return (stat.S_ISREG(st.st_mode) and st.st_uid == os.geteuid()
+            and (st.st_dev, st.st_ino) == (rec["dev"], rec["ino"]))
+
+
+def _delete_entry(root: Path, kind_fd: int, name: str, rec: dict) -> bool:
+    """Delete an entry the index recorded: moved aside first, checked there (so a file swapped in at
+    the last moment is put back, not deleted), then removed."""
+    from .outputs import _RENAME_NOREPLACE, _renameat2, _tmp_name
+
+    aside = _tmp_name(root / name).name
+    try:
+        os.rename(name, aside, src_dir_fd=kind_fd, dst_dir_fd=kind_fd)
+    except OSError:
+        return False
+    if _is_entry(kind_fd, aside, rec):
+        os.unlink(aside, dir_fd=kind_fd)
+        return True
+    try:
+        if not _renameat2(kind_fd, aside, kind_fd, name, _RENAME_NOREPLACE):
+            os.link(aside, name, src_dir_fd=kind_fd, dst_dir_fd=kind_fd, follow_symlinks=False)
+            os.unlink(aside, dir_fd=kind_fd)
+    except OSError:
+        pass                   # the name was taken meanwhile; the file stays under the aside name
+    return False
+
+
+def _prune(root: Path, root_fd: int, entries: dict[str, dict], max_bytes: int) -> None:
+    """Remove the least recently used of the index's entries (never another file) until the entries
+    take at most ``max_bytes``; entries no longer the cache's files leave the index."""
+    live = []
+    kind_fds: dict[str, int] = {}
+    try:
+        for rel, rec in list(entries.items()):
+            m = _ENTRY_RE.match(rel)
+            kind = m["kind"]
+            if kind not in kind_fds:
+                try:
+                    kind_fds[kind] = os.open(kind, _O_DIR, dir_fd=root_fd)
+                except OSError:
+                    kind_fds[kind] = -1
+            kfd = kind_fds[kind]
+            if kfd < 0 or not _is_entry(kfd, m["name"], rec):
+                del entries[rel]
+                continue
+            st = os.stat(m["name"], dir_fd=kfd, follow_symlinks=False)
+            live.append((st.st_atime_ns, st.st_size, rel, m["name"], kfd))
+        total = sum(size for _, size, *_ in live)
+        for _, size, rel, name, kfd in sorted(live):
+            if total <= max_bytes:
+                break
+            if _delete_entry(root, kfd, name, entries[rel]):
+                total -= size
+            del entries[rel]
+    finally:
+        for fd in kind_fds.values():
+            if fd >= 0:
+                os.close(fd)
 
 
 def max_bytes() -> int:
@@ -105,6 +240,106 @@ def _valid(out: np.ndarray, shape: tuple | None) -> bool:
     return out.dtype.kind in "fiub"
 
 
+def _load(path: Path, shape: tuple | None, limit: int) -> np.ndarray | None:
+    """The entry at ``path`` if it is a sound one, else None — without blocking (a FIFO) and without
+    allocating more than the file holds (a header claiming 10¹¹ elements)."""
+    try:
+        fd = os.open(path, _O_READ)
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            return None
+        with os.fdopen(os.dup(fd), "rb") as f:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                dims, fortran, dtype = np.lib.format.read_array_header_1_0(f)
+            elif version == (2, 0):
+                dims, fortran, dtype = np.lib.format.read_array_header_2_0(f)
+            else:
+                return None
+            if dtype.hasobject or dtype.kind not in "fiub" or (shape is not None and tuple(dims) != tuple(shape)):
+                return None
+            nbytes = math.prod(dims) * dtype.itemsize
+            if nbytes > limit or f.tell() + nbytes != st.st_size:
+                return None
+            buf = bytearray(nbytes)
+            view, got = memoryview(buf), 0
+            while got < nbytes:
+                n = f.readinto(view[got:])
+                if not n:
+                    return None
+                got += n
+        out = np.frombuffer(buf, dtype=dtype).reshape(dims, order="F" if fortran else "C")
+        if not _valid(out, shape):
+            return None
+        os.utime(fd)                       # least recently *used* goes first when pruning
+        return out
+    except (OSError, ValueError, EOFError, OverflowError):
+        return None
+    finally:
+        os.close(fd)
+
+
+def _store(root: Path, kind: str, key: str, out: np.ndarray, limit: int) -> None:
+    """Write the entry ``kind/key.npy`` (unless a file the cache did not write has that name), record
+    it in the index and prune, under an exclusive lock on the cache folder."""
+    from .outputs import _O_CREATE, _tmp_name, _umask, clean_leftovers, commit_file
+    from .diagnostics import LbsceneUserError
+
+    root.mkdir(parents=True, exist_ok=True)
+    root_fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        fcntl.flock(root_fd, fcntl.LOCK_EX)
+        entries = _read_index(root_fd)
+        if entries is None:
+            return
+        try:
+            os.mkdir(kind, 0o777, dir_fd=root_fd)
+        except FileExistsError:
+            pass
+        kind_fd = os.open(kind, _O_DIR, dir_fd=root_fd)
+        try:
+            name, rel = f"{key}.npy", f"{kind}/{key}.npy"
+            try:
+                os.stat(name, dir_fd=kind_fd, follow_symlinks=False)
+                exists = True
+            except FileNotFoundError:
+                exists = False
+            if exists and not _is_entry(kind_fd, name, entries.get(rel)):
+                return                      # not the cache's file: left alone, the result not kept
+            clean_leftovers(root / kind, name)
+            tmp = _tmp_name(root / kind / name, suffix=".npy").name
+            fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=kind_fd)
+            try:
+                try:
+                    with os.fdopen(os.dup(fd), "wb") as f:
+                        np.lib.format.write_array(f, np.ascontiguousarray(out), allow_pickle=False)
+                    os.fchmod(fd, 0o666 & ~_umask())
+                    st = os.fstat(fd)
+                finally:
+                    os.close(fd)
+                rec = entries.get(rel)
+                try:
+                    commit_file(kind_fd, tmp, kind_fd, name, shown=root / rel,
+                                may_replace=lambda d, n: _is_entry(d, n, rec))
+                except LbsceneUserError:
+                    return                  # a file appeared under the name meanwhile: not ours
+            finally:
+                try:
+                    os.unlink(tmp, dir_fd=kind_fd)
+                except FileNotFoundError:
+                    pass
+            entries[rel] = {"dev": st.st_dev, "ino": st.st_ino, "size": st.st_size}
+        finally:
+            os.close(kind_fd)
+        _prune(root, root_fd, entries, limit)
+        _write_index(root, root_fd, entries)
+    finally:
+        os.close(root_fd)
+
+
 def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], np.ndarray],
                  shape: tuple | None = None) -> np.ndarray:
     """``compute()``, or its earlier result for the same ``kind``, input ``arrays`` and ``params``.
@@ -112,27 +347,20 @@ def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], 
     ``kind`` names the computation (a folder of the cache); ``params`` are plain
     values (numbers, strings, tuples) that change its result.  An entry that cannot be
     read, or has another ``shape`` than expected, non-finite values or a non-numeric dtype
-    (a damaged or foreign file under the right name), is recomputed and replaced.
+    (a damaged or foreign file under the right name), is recomputed; it is replaced only if
+    it is the cache's own file (see the module's notes).
     """
     root = cache_dir()
-    if root is None:
+    if root is None or not _KIND_RE.match(kind):
         return compute()
     limit = max_bytes()
-    path = root / kind / f"{_key(kind, arrays, params)}.npy"
-    try:
-        out = np.load(path, allow_pickle=False, mmap_mode=None)
-        if isinstance(out, np.ndarray) and _valid(out, shape):
-            os.utime(path)                     # least recently *used* goes first when pruning
-            return out
-    except (OSError, ValueError, EOFError):
-        pass
+    key = _key(kind, arrays, params)
+    out = _load(root / kind / f"{key}.npy", shape, limit)
+    if out is not None:
+        return out
     out = np.asarray(compute())
     try:
-        from .atomic import atomic_path
-
-        with atomic_path(path, suffix=".npy") as tmp:
-            np.save(tmp, out, allow_pickle=False)
-        _prune(root, limit)
+        _store(root, kind, key, out, limit)
     except (OSError, ValueError):
         pass
     return out

@@ -10,6 +10,7 @@ interrupted run never leaves a half-written history.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import time
@@ -91,15 +92,24 @@ def read_history(path: Path) -> list[dict]:
         ``LB0xx`` reading the file, ``LB015`` a line that is not JSON, ``LB101`` a field of the
         wrong type.
     """
-    from lbscene.engine.files.diagnostics import LbsceneUserError
-    from lbscene.engine.files.yamlio import parse_json_text, read_bytes_bounded
+    return _parse_history(_history_bytes(Path(path)), Path(path))
 
-    path = Path(path)
+
+def _history_bytes(path: Path) -> bytes | None:
+    """The history file's bytes (None when there is none), read with the usual bounds."""
+    from lbscene.engine.files.yamlio import read_bytes_bounded
+
     if not os.path.lexists(path):
-        return []
-    raw = read_bytes_bounded(path, str(path), MAX_HISTORY_BYTES, is_input=False)
+        return None
+    return read_bytes_bounded(path, str(path), MAX_HISTORY_BYTES, is_input=False)
+
+
+def _parse_history(raw: bytes | None, path: Path) -> list[dict]:
     out = []
-    for no, line in enumerate(raw.decode("utf-8", errors="replace").splitlines(), 1):
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+    from lbscene.engine.files.yamlio import parse_json_text
+
+    for no, line in enumerate((raw or b"").decode("utf-8", errors="replace").splitlines(), 1):
         line = line.strip()
         if not line:
             continue
@@ -127,7 +137,7 @@ def _is_history(path: Path, entries: list[dict]) -> bool:
     return len(lines) == len(entries) and all("step" in e and "label" in e for e in entries)
 
 
-def _own_history(path: Path) -> list[dict]:
+def _own_history(path: Path, raw: bytes | None = None) -> list[dict]:
     """The entries of the history lbscene may rewrite at ``path`` (none when it does not exist).
 
     A file of that name that is not lbscene's (not in the folder's ledger, and a line that is not
@@ -141,7 +151,7 @@ def _own_history(path: Path) -> list[dict]:
         "LB611", "history file exists and is not an lbscene history; it is left as it is", str(path),
         expected="an lbscene history (JSON lines)", hint="move it away, or run with --no-history")
     try:
-        old = read_history(path)
+        old = _parse_history(raw if raw is not None else _history_bytes(path), path)
     except LbsceneUserError as exc:
         if any(d.code in ("LB015", "LB101") for d in exc.diagnostics) and not made_by_lbscene(path):
             raise not_ours from None
@@ -173,13 +183,16 @@ def append_history(path: Path, entry: dict) -> dict:
     from lbscene.engine.files.outputs import write_output
 
     path = Path(path)
-    old = _own_history(path)
+    raw = _history_bytes(path)
+    old = _own_history(path, raw)
     entry = dict(entry)
     entry.setdefault("time", time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     entry["step"] = (old[-1].get("step", len(old)) + 1) if old else 1
     entry["label"] = change_label(old[-1] if old else None, entry)
     lines = [json.dumps(e, sort_keys=True, ensure_ascii=False) for e in old + [entry]]
-    write_output(path, "\n".join(lines) + "\n")
+    # rewritten only if it still holds what was read here (a line appended meanwhile is not lost)
+    write_output(path, "\n".join(lines) + "\n",
+                 replace_if_sha256=hashlib.sha256(raw).hexdigest() if raw is not None else None)
     return entry
 
 

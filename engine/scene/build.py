@@ -15,9 +15,12 @@ Layout of a build folder::
 Everything is written into a temporary sibling folder that replaces the old
 build only when complete: an interrupted build leaves the previous one intact,
 and the next build removes what it left.  ``--out`` follows the output policy of
-:mod:`lbscene.engine.files.outputs`: an existing folder is replaced only if it is an
-lbscene build (its ``manifest.json``) holding nothing else; never the booth's own
-folder, a folder of the user's files, or a file.
+:mod:`lbscene.engine.files.outputs`: an existing folder is replaced only if every file in
+it, recursively, is one lbscene made and unchanged (checked before the work and
+again when the new build is swapped in); never the booth's own folder, a folder of
+the user's files, or a file.  Other lbscene products kept inside a build (bakes
+under ``bake/``, outputs recorded in a ledger) are taken over by the new build.
+A full disk is ``LB610``, the previous build intact.
 Same inputs → byte-identical files (no timestamps; canonical JSON).
 """
 
@@ -31,9 +34,11 @@ from importlib import import_module
 from pathlib import Path
 from typing import Callable
 
+from lbscene.engine.files.atomic import atomic_replace_dir, write_atomic
 from lbscene.engine.files.diagnostics import LbsceneUserError
-from lbscene.engine.files.outputs import (_is_input, check_output_dir, fault_point, register_input,
-                                          replace_dir, restore_interrupted, temporary_dir_for)
+from .ir import SceneIR, canonical_json
+from lbscene.engine.files.outputs import (NO_SPACE_ERRNOS, _is_input, carry_over, check_output_dir, fault_point, no_space_error,
+                      register_input, replace_dir, restore_interrupted, temporary_dir_for, write_new_file)
 
 from .ir import SceneIR, canonical_json
 
@@ -93,19 +98,19 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
     result = BuildResult(out_dir=out_dir, ir_hash=ir.content_hash, booth_name=ir.booth_name,
                          lightings=lightings)
     try:
-        (tmp / "scene.ir.json").write_text(ir.to_json())
+        write_new_file(tmp / "scene.ir.json", ir.to_json())
         for lamp in ir.lamps:   # IES photometry travels with the build, written from the IR's table
             if lamp.profile.get("type") == "ies":
                 from lbscene.engine.spectra.profiles import ies_text
 
                 (tmp / "ies").mkdir(exist_ok=True)
-                (tmp / "ies" / f"{lamp.id}.ies").write_text(ies_text(lamp.profile["data"]))
+                write_new_file(tmp / "ies" / f"{lamp.id}.ies", ies_text(lamp.profile["data"]))
         step("usd")
         write_stage(ir, tmp / "scene.usda")
         plug = tmp / "usd_plugin"
         plug.mkdir()
         for name in ("plugInfo.json", "generatedSchema.usda"):
-            shutil.copyfile(SCHEMA_DIR / name, plug / name)
+            write_new_file(plug / name, (SCHEMA_DIR / name).read_bytes())
         writers = []
         for mod_name, fn_name in PRODUCT_WRITERS:
             try:
@@ -129,12 +134,16 @@ def build_booth(booth_path: Path, out_dir: Path, lighting: str | None = None,
                     "ir_version": ir.ir_version, "lightings": lightings, "files": result.files,
                     "units": {"length": "mm", "spectral_intensity": "W·sr⁻¹·nm⁻¹",
                               "bands": ir.bands}}
-        (tmp / "manifest.json").write_text(json.dumps(json.loads(canonical_json(manifest)),
-                                                      indent=2, sort_keys=True, ensure_ascii=False) + "\n")
+        # the manifest is written last: no file it lists is newer than it
+        write_new_file(tmp / "manifest.json", json.dumps(json.loads(canonical_json(manifest)), indent=2,
+                                                         sort_keys=True, ensure_ascii=False) + "\n")
         step("finish")
         fault_point("build-finish")
-        replace_dir(tmp, out_dir)
-    except BaseException:
+        carry_over(out_dir, tmp, option="--out")       # bakes and recorded outputs kept in the old build
+        replace_dir(tmp, out_dir, option="--out")
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE_ERRNOS:
+            raise no_space_error(out_dir, "--out", exc) from None
         raise
     return result

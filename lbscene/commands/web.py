@@ -136,11 +136,11 @@ def run_export_web(source, out: Path, *, lightings=(), samples=(), displays=(), 
     from lbscene.runtimes.web.export import build_export, is_web_export, write_export
 
     out = Path(out)
-    if out.exists() and out.is_dir() and any(out.iterdir()) and not is_web_export(out):
+    if out.is_dir() and not out.is_symlink() and any(out.iterdir()) and not is_web_export(out):
         raise _err("LB700", f"--out {display_path(out)} exists and is not a web export", value=str(out),
                    expected="a new folder, or one an earlier export-web wrote (it is replaced whole)")
     check_outputs([], inputs=[source, session])
-    check_output_dir(out, option="--out", owned=is_web_export)
+    check_output_dir(out, option="--out")     # every file export-web's, unchanged (checked again at the swap)
     t0 = time.perf_counter()
     inp, _ = gather_inputs(Path(source) if source is not None else None, lightings=lightings, samples=samples,
                            displays=displays, size=size, session=session, allowed_dirs=tuple(allowed_dirs))
@@ -173,7 +173,8 @@ def register(app: typer.Typer) -> None:
         source: Optional[Path] = typer.Argument(
             None, help="Render configuration (kind: render_config) or booth folder/booth.yaml; may be left "
                        "out with --session when the session names its render_config."),
-        out: Path = typer.Option(..., "--out", "-o", help="Folder to write the viewer into (replaced whole)."),
+        out: Path = typer.Option(..., "--out", "-o", help="Folder to write the viewer into (an earlier export "
+                                 "is replaced whole while it holds only the files export-web wrote, unchanged)."),
         lighting: Optional[List[str]] = typer.Option(
             None, "--lighting", help="Lighting configurations to include (default: all of the booth)."),
         sample: Optional[List[Path]] = typer.Option(None, "--sample", help="Extra sample documents."),

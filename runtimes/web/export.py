@@ -22,6 +22,9 @@ works from ``file://``)::
     lbscene-data.js         ``window.LBSCENE_DATA = {...}``: manifest + base64 blobs
     model-delta-e00.csv     with a session: the model's ΔE00 per case
                             (:mod:`lbscene.engine.visual.model`), for ``visual-report --model-de``
+    manifest.json           what export-web wrote: format, lbscene version, files and their sha256
+                            (an earlier export is replaced only while every file in it is one of
+                            these, unchanged: :mod:`lbscene.engine.files.outputs`)
 
 Blobs are content-addressed (sha256), so data shared by views, samples or displays
 (booth meshes under fixed lamps, the LTC tables) are stored once.
@@ -264,28 +267,52 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
 
 
 def is_web_export(folder: Path) -> bool:
-    """Whether ``folder`` holds a web export (the only kind of folder ``write_export`` replaces)."""
-    return (Path(folder) / DATA_FILE).is_file() and (Path(folder) / "index.html").is_file()
+    """Whether ``folder`` holds a web export: its ``manifest.json`` is one export-web wrote (a
+    regular file of the current user, format ``lbscene.web_export``).  Whether it may be replaced
+    is then :func:`lbscene.engine.files.outputs.verify_tree`'s question (every file listed, unchanged)."""
+    from lbscene.engine.files.outputs import read_manifest
+
+    got = read_manifest(Path(folder))
+    return got is not None and got[0].get("format") == EXPORT_FORMAT
 
 
-def write_export(manifest: dict, out_dir: Path) -> list[Path]:
-    """Write the viewer folder atomically (assembled in a sibling, then moved into place)."""
-    from lbscene.engine.files.atomic import atomic_replace_dir, temporary_dir_for
+def write_export(manifest: dict, out_dir: Path, *, option: str | None = "--out") -> list[Path]:
+    """Write the viewer folder atomically: assembled in a private sibling (files created
+    exclusively and written through their descriptors), its ``manifest.json`` last, then swapped
+    in by :func:`lbscene.engine.files.outputs.replace_dir` (which replaces an earlier export only while
+    every file in it is one export-web wrote, unchanged).
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB611`` for an ``out_dir`` holding files export-web did not write (or changed since),
+        ``LB610`` on a full disk (nothing changed, temporaries removed).
+    """
+    from lbscene._version import __version__
+    from lbscene.engine.files.outputs import (NO_SPACE_ERRNOS, no_space_error, replace_dir, temporary_dir_for,
+                                        write_new_file)
 
     out_dir = Path(out_dir)
-    tmp = temporary_dir_for(out_dir)
+    tmp = temporary_dir_for(out_dir, option=option)
     try:
+        files = {}
         for name in ASSET_FILES:
-            shutil.copyfile(ASSET_DIR / name, tmp / name)
+            files[name] = write_new_file(tmp / name, (ASSET_DIR / name).read_bytes())
         text = json.dumps(manifest, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
         if manifest.get("model_delta_e00"):
-            (tmp / MODEL_DE_FILE).write_text(model_delta_e_csv(manifest), encoding="utf-8")
-        (tmp / DATA_FILE).write_text(
-            f"// lbscene web export: render graphs, shaders and data (generated; see index.html)\n"
-            f"window.{DATA_GLOBAL} = {text};\n", encoding="utf-8")
-        atomic_replace_dir(tmp, out_dir)
-    except BaseException:
+            files[MODEL_DE_FILE] = write_new_file(tmp / MODEL_DE_FILE, model_delta_e_csv(manifest))
+        files[DATA_FILE] = write_new_file(
+            tmp / DATA_FILE, f"// lbscene web export: render graphs, shaders and data (generated; see index.html)\n"
+                             f"window.{DATA_GLOBAL} = {text};\n")
+        del text
+        write_new_file(tmp / "manifest.json", json.dumps(
+            {"format": EXPORT_FORMAT, "version": EXPORT_VERSION, "lbscene_version": __version__,
+             "booth": manifest.get("booth"), "files": dict(sorted(files.items()))}, indent=1) + "\n")
+        replace_dir(tmp, out_dir, option=option)
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE_ERRNOS:
+            raise no_space_error(out_dir, option, exc) from None
         raise
     extra = (MODEL_DE_FILE,) if manifest.get("model_delta_e00") else ()
     return [out_dir / n for n in ASSET_FILES + (DATA_FILE,) + extra]

@@ -136,3 +136,100 @@ def test_cache_size_bound_must_be_a_finite_size(cache, monkeypatch, value):
     assert d.code == "LB501"
     assert d.format() == (f"error LB501: LBSCENE_CACHE_MAX_MB must be a size in MiB (got {value!r}; "
                           "expected a finite number from 0 to 1073741824)")
+
+
+# --------------------------------------------------------------------------- only what the cache wrote
+
+
+def test_pruning_never_deletes_files_the_cache_did_not_write(cache, monkeypatch):
+    """Over its size bound the cache removes entries recorded in its own index, never a file
+    that merely matches ``*/*.npy``."""
+    import os
+
+    cache.mkdir(parents=True)
+    (cache / "mine").mkdir()
+    np.save(cache / "mine" / "results.npy", np.arange(200_000.0))          # 1.6 MB of the user's
+    (cache / "ff").mkdir()
+    np.save(cache / "ff" / "notes.npy", np.arange(10.0))                  # under a cache folder's name
+    for f in (cache / "mine" / "results.npy", cache / "ff" / "notes.npy"):
+        os.utime(f, (1_000_000, 1_000_000))                              # "least recently used"
+    monkeypatch.setenv("LBSCENE_CACHE_MAX_MB", str(1e6 / 2 ** 20))        # room for one 0.8 MB entry
+
+    def put(i):
+        return disk_cache.cached_array("ff", (np.array([i]),), (), lambda: np.full(100_000, float(i)))
+
+    put(0)
+    put(1)
+    np.testing.assert_array_equal(np.load(cache / "mine" / "results.npy"), np.arange(200_000.0))
+    np.testing.assert_array_equal(np.load(cache / "ff" / "notes.npy"), np.arange(10.0))
+    left = sorted(float(np.load(f)[0]) for f in (cache / "ff").glob("*.npy") if f.name != "notes.npy")
+    assert left == [1.0]                                                  # its own oldest entry went
+
+
+def test_a_file_put_under_an_entrys_name_is_not_replaced(cache):
+    """A file at an entry's name that the cache did not write (not its index's file) is left as it is."""
+    calls, compute = counter()
+    a = np.arange(3.0)
+    key = disk_cache._key("ff", (a,), ())
+    (cache / "ff").mkdir(parents=True)
+    mine = cache / "ff" / f"{key}.npy"
+    mine.write_bytes(b"the user's bytes")
+    out = disk_cache.cached_array("ff", (a,), (), compute)
+    assert calls == [1.0] and out.shape == (3, 2)
+    assert mine.read_bytes() == b"the user's bytes"
+
+
+_FIFO_SCRIPT = """
+import os, sys
+import numpy as np
+from lbscene.engine import disk_cache
+a = np.arange(3.0)
+out = disk_cache.cached_array("ff", (a,), (), lambda: np.ones((3, 2)))
+print(out.sum())
+"""
+
+
+@pytest.mark.parametrize("where", ["entry", "index"])
+def test_a_fifo_in_the_cache_does_not_hang(cache, where):
+    import os
+    import subprocess
+    import sys
+
+    a = np.arange(3.0)
+    (cache / "ff").mkdir(parents=True)
+    fifo = cache / "ff" / f"{disk_cache._key('ff', (a,), ())}.npy" if where == "entry" else \
+        cache / disk_cache.INDEX_NAME
+    os.mkfifo(fifo)
+    p = subprocess.run([sys.executable, "-c", _FIFO_SCRIPT], capture_output=True, text=True, timeout=60,
+                       env={**os.environ, "LBSCENE_CACHE_DIR": str(cache)})   # a hang times out here
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "6.0"
+    import stat
+
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)                          # left as it was
+
+
+def test_a_header_claiming_a_huge_array_is_not_allocated(cache):
+    """A cache entry whose header claims 10¹¹ float64 (745 GiB) is checked against the file's size
+    before anything is allocated, then recomputed."""
+    import tracemalloc
+
+    calls, compute = counter()
+    a = np.arange(4.0)
+    disk_cache.cached_array("ff", (a,), (), compute)
+    (f,) = (cache / "ff").glob("*.npy")
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10 ** 11,)}
+    with open(f, "r+b") as fh:                                             # the cache's own file, rewritten
+        fh.truncate(0)
+        np.lib.format.write_array_header_1_0(fh, header)
+        fh.write(np.zeros(2).tobytes())
+    tracemalloc.start()
+    try:
+        out = disk_cache.cached_array("ff", (a,), (), compute)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert calls == [1.0, 1.0]
+    np.testing.assert_array_equal(out, np.ones((3, 2)))
+    assert peak < 50 * 2 ** 20
+    np.testing.assert_array_equal(np.load(f), np.ones((3, 2)))           # and replaced

@@ -122,3 +122,184 @@ def test_bake_killed_at_random_moments(tmp_path):
     assert r.status in ("baked", "cached")
     assert json.loads((out / "manifest.json").read_text())["job_hash"] == changed.content_hash
     assert _leftovers(tmp_path, "bk") == []
+
+
+# --------------------------------------------------------------------------- stopped by a signal
+
+
+def _digest(root: Path) -> dict:
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _wait_for(p: subprocess.Popen, marker: str, timeout_s: float = 120.0) -> None:
+    """Read the process's stderr until a line holds ``marker``."""
+    t0 = time.monotonic()
+    for line in p.stderr:
+        if marker in line.decode(errors="replace"):
+            return
+        assert time.monotonic() - t0 < timeout_s, f"no {marker!r}"
+    raise AssertionError(f"the process ended before {marker!r}")
+
+
+def _gone(pid: int, timeout_s: float = 15.0) -> bool:
+    """Whether process ``pid`` ends (or is a zombie) within ``timeout_s``."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return True
+        if state in ("Z", "X"):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
+def test_build_stopped_by_a_signal_removes_its_temporaries(sig, minimal_booth, tmp_path):
+    out = tmp_path / "b"
+    assert _build(minimal_booth, out).wait() == 0
+    before = _digest(out)
+    _edit_level(minimal_booth, 1700)
+    p = _build(minimal_booth, out, {"LBSCENE_FAULT": "build-lighting:wait"})
+    _wait_for(p, "@@lbscene-fault build-lighting")
+    assert _leftovers(tmp_path, "b")                         # the build is being assembled
+    p.send_signal(sig)
+    rc = p.wait(timeout=60)
+    err = p.stderr.read().decode()
+    assert rc == 128 + sig, err
+    assert "Traceback" not in err
+    assert f"lbscene: stopped by {sig.name}; its temporary files were removed" in err
+    assert _leftovers(tmp_path, "b") == []
+    assert _digest(out) == before
+
+
+_BAKE_WRAPPER = '''
+import sys
+
+import lbscene.bakers.executor as ex
+
+CHILD = "import os, sys, time\\nopen(sys.argv[1] + '.tmp', 'w').write(str(os.getpid()))\\n" \\
+        "os.replace(sys.argv[1] + '.tmp', sys.argv[1])\\ntime.sleep(300)\\n"
+ex._child_command = lambda job_path, out_dir: [sys.executable, "-c", CHILD, sys.argv[1]]
+from lbscene.cli import main
+
+sys.exit(main(sys.argv[2:]))
+'''
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGKILL])
+def test_a_stopped_bake_takes_its_child_with_it(sig, minimal_booth, tmp_path):
+    """Killing ``bake`` (any signal, SIGKILL included) ends the process rendering for it, and what a
+    killed run leaves never blocks the next ``build`` of the folder."""
+    build = tmp_path / "b"
+    assert _build(minimal_booth, build).wait() == 0
+    wrapper = tmp_path / "bake_wrapper.py"
+    wrapper.write_text(_BAKE_WRAPPER)
+    marker = tmp_path / "child.pid"
+    p = subprocess.Popen([sys.executable, str(wrapper), str(marker), "bake", str(build), "--lighting", "A"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path)
+    t0 = time.monotonic()
+    while not marker.exists():
+        assert p.poll() is None, p.stderr.read().decode()
+        assert time.monotonic() - t0 < 120
+        time.sleep(0.05)
+    child = int(marker.read_text())
+    assert _leftovers(build / "bake", "A")                  # the job file of the running bake
+    p.send_signal(sig)
+    rc = p.wait(timeout=60)
+    assert _gone(child), "the bake's child outlived it"
+    if sig != signal.SIGKILL:
+        assert rc == 128 + sig
+        assert _leftovers(build / "bake", "A") == []
+    assert _build(minimal_booth, build).wait() == 0          # not refused for what the killed run left
+    assert list(build.rglob(".A.*")) == []
+
+
+# --------------------------------------------------------------------------- a full disk
+
+
+def _no_space(real_write):
+    import errno
+
+    def write(fd, data):
+        if fd > 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real_write(fd, data)
+
+    return write
+
+
+FULL = "cannot write: No space left on device (nothing was changed; temporary files were removed)"
+
+
+def test_build_on_a_full_disk(minimal_booth, tmp_path, run_cli, monkeypatch):
+    out = tmp_path / "b"
+    assert run_cli("build", minimal_booth, "--out", out)[0] == 0
+    before = _digest(out)
+    _edit_level(minimal_booth, 1700)
+    monkeypatch.setattr(os, "write", _no_space(os.write))
+    code, _, err = run_cli("build", minimal_booth, "--out", out)
+    monkeypatch.undo()
+    assert code == 2
+    assert "Traceback" not in err
+    assert f"{out}: error LB610: --out: {FULL}" in err
+    assert _digest(out) == before
+    assert _leftovers(tmp_path, "b") == []
+
+
+def test_export_web_on_a_full_disk(tmp_path, run_cli, monkeypatch):
+    out = tmp_path / "v"
+    monkeypatch.setattr(os, "write", _no_space(os.write))
+    code, _, err = run_cli("export-web", REPO / "tests" / "runtimes" / "data" / "tube-booth", "--out", out)
+    monkeypatch.undo()
+    assert code == 2
+    assert "Traceback" not in err
+    assert f"{out}: error LB610: --out: {FULL}" in err
+    assert sorted(os.listdir(tmp_path)) == []
+
+
+def _can_mount_tmpfs() -> bool:
+    try:
+        return subprocess.run(["unshare", "-rm", "sh", "-c", "mount -t tmpfs -o size=64k none /mnt"],
+                              capture_output=True, timeout=30).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+_FULL_DISK_SCRIPT = r'''
+set -u
+mount -t tmpfs -o size=256k lbscene-full "$MNT" || exit 99
+lb() { "$PY" -m lbscene "$@"; }
+lb build "$BOOTH" --out "$MNT/b" > /dev/null 2> "$OUT/first.err"; echo "first=$?" > "$OUT/rc"
+find "$MNT/b" -type f -exec sha256sum {} + | sort > "$OUT/before"
+sed -i 's/value_cd: 1000/value_cd: 1700/' "$BOOTH/booth.yaml"
+lb build "$BOOTH" --out "$MNT/b" > /dev/null 2> "$OUT/build.err"; echo "build=$?" >> "$OUT/rc"
+find "$MNT/b" -type f -exec sha256sum {} + | sort > "$OUT/after"
+lb export-web "$WEB" --out "$MNT/v" > /dev/null 2> "$OUT/web.err"; echo "web=$?" >> "$OUT/rc"
+ls -A "$MNT" > "$OUT/listing"
+'''
+
+
+@pytest.mark.skipif(not _can_mount_tmpfs(), reason="needs a user namespace to mount a small tmpfs")
+def test_build_and_export_web_on_a_really_full_file_system(minimal_booth, tmp_path):
+    """A 256 KiB tmpfs holds one build of the minimal booth but not a second one beside it, nor a web
+    export: both commands fail with LB610, the earlier build is intact, no temporary is left."""
+    res = tmp_path / "res"
+    res.mkdir()
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    env = {**os.environ, "MNT": str(mnt), "OUT": str(res), "PY": sys.executable, "BOOTH": str(minimal_booth),
+           "WEB": str(REPO / "tests" / "runtimes" / "data" / "tube-booth"), "LBSCENE_CACHE_DIR": "off"}
+    p = subprocess.run(["unshare", "-rm", "bash", "-c", _FULL_DISK_SCRIPT], env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    rc = dict(line.split("=") for line in (res / "rc").read_text().split())
+    assert rc == {"first": "0", "build": "2", "web": "2"}, (res / "build.err").read_text()
+    build_err, web_err = (res / "build.err").read_text(), (res / "web.err").read_text()
+    assert "Traceback" not in build_err + web_err
+    assert f"{mnt}/b: error LB610: --out: {FULL}" in build_err
+    assert f"{mnt}/v: error LB610: --out: {FULL}" in web_err
+    assert (res / "after").read_text() == (res / "before").read_text() != ""
+    assert (res / "listing").read_text().split() == ["b"]

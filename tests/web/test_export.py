@@ -33,8 +33,8 @@ def exported(tmp_path_factory):
 
 def test_folder_is_self_contained(exported):
     names = sorted(p.name for p in exported.iterdir())
-    assert names == ["index.html", "lbscene-data.js", "lbscene-executor.js", "model-delta-e00.csv",
-                     "viewer.css", "viewer.js"]
+    assert names == ["index.html", "lbscene-data.js", "lbscene-executor.js", "manifest.json",
+                     "model-delta-e00.csv", "viewer.css", "viewer.js"]
     for name in ("index.html", "viewer.js", "lbscene-executor.js", "viewer.css"):
         text = (exported / name).read_text()
         # nothing is fetched from elsewhere: no absolute URLs, no module imports, no CDN
@@ -126,3 +126,42 @@ def test_model_delta_e_feeds_visual_report(exported, run_cli, tmp_path):
     assert st["summary"]["stress_vs_model"] is not None
     want = {(r["geometry"], r["sample"]): float(r["delta_e00"]) for r in rows}
     assert {c["model_delta_e00"] for c in st["cases"]} == {want[(c["geometry"], c["sample"])] for c in st["cases"]}
+
+
+def test_export_replaces_only_an_export_it_made_unchanged(run_cli, tmp_path):
+    """``--out`` follows the output policy of ``build``: an earlier export is replaced only while every
+    file in it is one export-web wrote (its manifest) and unchanged."""
+    out = tmp_path / "v"
+    booth = DATA.parent.parent / "runtimes" / "data" / "tube-booth"
+    for _ in range(2):                                                     # the second replaces the first
+        code, _, err = run_cli("export-web", booth, "--out", out)
+        assert code == 0, err
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["format"] == "lbscene.web_export" and set(m["files"]) == {
+        "index.html", "viewer.css", "lbscene-executor.js", "viewer.js", "lbscene-data.js"}
+    (out / "notes.txt").write_text("what I saw in the viewer")            # the user keeps notes in it
+    code, _, err = run_cli("export-web", booth, "--out", out)
+    assert code == 2 and "Traceback" not in err
+    assert (f"{out}: error LB611: --out: folder holds files lbscene did not write; it is left as it is "
+            "(got notes.txt;") in err
+    assert (out / "notes.txt").read_text() == "what I saw in the viewer"
+    (out / "notes.txt").unlink()
+    css = out / "viewer.css"
+    css.write_text(css.read_text() + "body { background: black }\n")     # a hand edit
+    code, _, err = run_cli("export-web", booth, "--out", out)
+    assert code == 2
+    assert (f"{css}: error LB611: --out: this file was changed since lbscene wrote it; the output folder is "
+            "left as it is") in err
+    assert css.read_text().endswith("body { background: black }\n")
+
+
+def test_a_users_web_folder_with_an_index_html_is_kept(run_cli, tmp_path):
+    out = tmp_path / "site"
+    out.mkdir()
+    (out / "index.html").write_text("<html>my site</html>")
+    (out / "lbscene-data.js").write_text("// my notes on the data\n")
+    code, _, err = run_cli("export-web", CONFIG, "--out", out)
+    assert code == 2
+    assert f"error LB700: --out {out} exists and is not a web export" in err
+    assert (out / "index.html").read_text() == "<html>my site</html>"
+    assert (out / "lbscene-data.js").read_text() == "// my notes on the data\n"
