@@ -1,0 +1,19 @@
+"""
+Effect coatings (metallic and pearlescent paints): colour flop, sparkle and graininess.
+
+* :mod:`.optics` — measurement directions, refraction at the clear coat, Fresnel;
+* :mod:`.flop` — the multi-lobe Cook–Torrance BRDF fitted per band to the six geometries;
+* :mod:`.flakes` — flakes as mirrors: orientation distribution, glint probability, mean lobe;
+* :mod:`.instrument` — lbscene's texture instrument: simulated images, S_a, S_i, G;
+* :mod:`.fit_texture` — flake parameters from the instrument's readings;
+* :mod:`.model` — the coating of a sample as the renderer uses it;
+* :mod:`.colorimetry` — CIELAB and ΔE00 of band reflectances (colour-science);
+* :mod:`.mitsuba_flakes` — explicit flakes rendered by Mitsuba 3, the texture's outside truth.
+"""
+
+from .flakes import FlakeModel
+from .flop import FlopModel, MeasuredGeometry, fit_flop, leave_one_out
+from .model import CoatingAppearance, coating_appearance
+
+__all__ = ["FlakeModel", "FlopModel", "MeasuredGeometry", "fit_flop", "leave_one_out",
+           "CoatingAppearance", "coating_appearance"]
