@@ -37,6 +37,24 @@ On average over the surface the flakes are a microfacet lobe (no shadowing):
 
 with :math:`ρ_A \\bar a` the area fraction the flakes cover (:math:`\\bar a = π E[d^2]/4`).
 
+Flakes hide one another
+-----------------------
+Flakes lie at random depths in an effect layer of thickness :math:`t` (``layer_um``).  A flake with a
+fraction :math:`u` of the layer's flakes above it (:math:`u` uniform) is reached by the lamp's light
+and seen by the viewer through the flakes above it: each path crosses a coverage :math:`c\\,u`
+(:math:`c = ρ_A \\bar a`; a flat flake's projection shrinks by the same cosine by which a slanted
+path crosses more of them).  The two paths leave the flake along :math:`\\mathbf l'` and
+:math:`\\mathbf v'`; at the mean height :math:`u t / 2` of the flakes above, they are
+:math:`Δ = (u t/2)\\,|\\mathbf l'_{xy}/l'_z − \\mathbf v'_{xy}/v'_z|` apart, so a share
+:math:`κ(Δ/\\bar d)` of what hides one hides the other (the overlap of two discs of the mean
+diameter :math:`\\bar d` at that offset, :math:`κ(x) = \\tfrac{2}{π}(\\arccos x − x\\sqrt{1 − x^2})`).
+Treating the flakes above as a Poisson screen, the visible share of a glint is
+
+.. math:: s(u) = e^{−c u (2 − κ)}, \\qquad V = \\int_0^1 s(u)\\, du ,
+
+:math:`V` multiplying the flakes' mean lobe (:meth:`FlakeModel.visibility`).  Mitsuba's explicit
+flakes (:mod:`~lbscene.engine.coatings.mitsuba_flakes`) check it.
+
 References
 ----------
 .. [1] P. Beckmann, A. Spizzichino, *The Scattering of Electromagnetic Waves from Rough
@@ -98,6 +116,8 @@ class FlakeModel:
         Band reflectance of a flake (a mirror).
     n : float
         Clear-coat refractive index.
+    layer_um : float
+        Thickness of the effect layer the flakes are spread through (basecoats: 12–25 µm).
     """
 
     density_per_mm2: float
@@ -106,6 +126,7 @@ class FlakeModel:
     alpha: float
     flake_reflectance: np.ndarray
     n: float = 1.5
+    layer_um: float = 20.0
 
     @classmethod
     def from_spread_deg(cls, density_per_mm2, median_diameter_um, diameter_spread, spread_deg,
@@ -137,6 +158,29 @@ class FlakeModel:
         """Area fraction :math:`ρ_A \\bar a` (may exceed 1 for stacked flakes)."""
         return self.density_per_mm2 * self.mean_area_um2 * 1e-6
 
+    def visible_share(self, u, l_in=None, v_in=None) -> np.ndarray:
+        """Visible share :math:`s(u)` of a glint with a fraction ``u`` of the flakes above it, for
+        the directions inside the coat ``l_in``, ``v_in`` (default: both along the normal)."""
+        u = np.asarray(u, float)
+        if l_in is None:
+            kappa = 1.0
+        else:
+            l_in, v_in = np.asarray(l_in, float), np.asarray(v_in, float)
+            dt = (l_in[..., :2] / np.clip(l_in[..., 2:3], 1e-6, None)
+                  - v_in[..., :2] / np.clip(v_in[..., 2:3], 1e-6, None))
+            x = np.clip(u * self.layer_um / 2 * np.linalg.norm(dt, axis=-1)
+                        / self.diameter_moment_um(1), 0.0, 1.0)
+            kappa = 2 / np.pi * (np.arccos(x) - x * np.sqrt(1 - x * x))
+        return np.exp(-self.coverage * u * (2.0 - kappa))
+
+    def visibility(self, l_in=None, v_in=None) -> np.ndarray:
+        """Mean visible share :math:`V = \\int_0^1 s(u) du` (module docstring), midpoint rule."""
+        u = (np.arange(64) + 0.5) / 64
+        if l_in is None:
+            return float(self.visible_share(u).mean())
+        l_in, v_in = np.asarray(l_in, float), np.asarray(v_in, float)
+        return self.visible_share(u, l_in[..., None, :], v_in[..., None, :]).mean(-1)
+
     def normal_pdf(self, m) -> np.ndarray:
         return beckmann_normal_pdf(m, self.alpha)
 
@@ -159,12 +203,13 @@ class FlakeModel:
         return np.asarray(t)[..., None] * self.flake_reflectance
 
     def mean_reflectance_factor(self, l, v) -> np.ndarray:
-        """:math:`π f_{flakes}` per band (the flakes' mean lobe, module docstring)."""
+        """:math:`π V f_{flakes}` per band (the flakes' mean lobe with their visibility, module
+        docstring)."""
         l, v = np.asarray(l, float), np.asarray(v, float)
         li, vi = refract_into_coat(l, self.n), refract_into_coat(v, self.n)
         h = half_vector(li, vi)
         t = fresnel_transmittance(l[..., 2], self.n) * fresnel_transmittance(v[..., 2], self.n)
-        k = (t / self.n ** 2 * self.coverage * self.normal_pdf(h) * np.pi
+        k = (t / self.n ** 2 * self.coverage * self.visibility(li, vi) * self.normal_pdf(h) * np.pi
              / (4.0 * np.clip(li[..., 2], 1e-9, None) * np.clip(vi[..., 2], 1e-9, None)))
         return np.asarray(k)[..., None] * self.flake_reflectance
 

@@ -26,14 +26,16 @@ the expected :math:`ρ_A A`).  Seen along the normal, a flake reflects the one d
 the coat as :math:`\\mathbf r` (Snell) or is totally reflected back.  Under the directional light a
 flake glints when :math:`\\mathbf r` lies in the source's disc; its pixels then read
 :math:`R = π ρ_f T(θ_r) T(0)\\, c / (π \\sin^2 δ \\cos θ)` with :math:`c` the share of the pixel it
-covers (its projected area, spread over 16 points of the disc).  The base between flakes reads its
+covers (its projected area times its visible share :math:`s(u)`, the flakes above it hiding the
+rest: :mod:`~lbscene.engine.coatings.flakes`; spread over 16 points of the disc).  The base between flakes reads its
 diffuse reflectance :math:`a\\, T(θ)\\, T(0)/n^2` times the uncovered fraction.  Under the dome, a flake
 whose :math:`\\mathbf r` leaves the coat outside the port reads :math:`ρ_f T(θ_r) T(0)`, inside the port
-0, and one whose :math:`\\mathbf r'` is totally reflected reads :math:`ρ_f` times the base's diffuse
-reflectance (it sees the layer below through the coat); the base reads :math:`a \\bar T T(0)/n^2`
-(:math:`\\bar T`: the interface's transmittance for diffuse light).  Not modelled: flakes shadowing
-or hiding one another (their coverages add, capped at 1), light between flakes and the coat's
-underside other than the total reflection above.
+0, and one whose :math:`\\mathbf r'` is totally reflected sees, by that reflection, the layer
+itself: it reads :math:`ρ_f` times the image's mean (a fixed point); the base reads :math:`a \\bar T T(0)/n^2`
+(:math:`\\bar T`: the interface's transmittance for diffuse light).  Not modelled: the shape of what
+hides a glint (its visible share is spread over its disc), light between flakes and the coat's
+underside other than the total reflection above; in the diffuse image the flakes' coverages add,
+capped at 1.
 
 The analysis
 ------------
@@ -60,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .flakes import FlakeModel, sample_normals
-from .optics import diffuse_transmittance, fresnel_transmittance
+from .optics import diffuse_transmittance, fresnel_transmittance, refract_into_coat
 
 __all__ = [
     "PIXEL_UM",
@@ -77,6 +79,7 @@ __all__ = [
     "Glints",
     "sparkle_glints",
     "sparkle_image",
+    "dense_sparkle_image",
     "diffuse_image",
     "analyse_sparkle",
     "analyse_graininess",
@@ -207,8 +210,9 @@ def _splat(shape, pos_um, d_um, weights_px):
 
 @dataclass
 class Glints:
-    """The glinting flakes of a sparkle field: centres (µm), diameters (µm), projected area over
-    the pixel area, and the reflectance factor of a pixel the flake would cover entirely."""
+    """The glinting flakes of a sparkle field: centres (µm), diameters (µm), visible projected
+    area over the pixel area, and the reflectance factor of a pixel the flake would cover
+    entirely."""
 
     centres_um: np.ndarray
     diameters_um: np.ndarray
@@ -244,8 +248,10 @@ def sparkle_glints(model: FlakeModel, illumination_deg: float, pool: GlintPool,
     d = model.median_diameter_um * np.exp(model.diameter_spread * ndtri(np.clip(u[glint, 4], 1e-12, 1 - 1e-12)))
     value = (np.pi * rho * fresnel_transmittance(r_air[glint, 2], n) * fresnel_transmittance(1.0, n)
              / proj_omega)
-    return Glints(u[glint, 2:4] * field_mm * 1000.0, d, np.pi / 4 * d ** 2 * m[glint, 2] / PIXEL_UM ** 2,
-                  value, total, len(u))
+    # the glint's visible share: the flakes above it hide part of it (FlakeModel.visible_share)
+    share = model.visible_share(u[glint, 5], refract_into_coat(src, n)[None, :], np.array([[0.0, 0.0, 1.0]]))
+    return Glints(u[glint, 2:4] * field_mm * 1000.0, d,
+                  np.pi / 4 * d ** 2 * m[glint, 2] * share / PIXEL_UM ** 2, value, total, len(u))
 
 
 def sparkle_image(model: FlakeModel, base_diffuse: float, illumination_deg: float, pool: GlintPool,
@@ -286,15 +292,20 @@ def diffuse_image(model: FlakeModel, base_diffuse: float, pool: FlakePool,
     t0 = fresnel_transmittance(1.0, n)
     base = base_diffuse * diffuse_transmittance(n) * t0 / n ** 2
     in_port = r_air[:, 2] > np.cos(np.radians(port_half_angle_deg))
-    r_f = np.where(leaves, np.where(in_port, 0.0, rho * fresnel_transmittance(r_air[:, 2], n) * t0),
-                   rho * base)
+    r_esc = np.where(in_port, 0.0, rho * fresnel_transmittance(r_air[:, 2], n) * t0)
     npx = int(round(field_mm * 1000 / PIXEL_UM))
     a_px = np.pi / 4 * d ** 2 * m[:, 2] / PIXEL_UM ** 2
     cov = _splat((npx, npx), pos, d, a_px)
-    lit = _splat((npx, npx), pos, d, a_px * r_f)
     over = cov > 1.0
-    lit[over] /= cov[over]
-    return lit + base * np.clip(1.0 - cov, 0.0, None)
+    lit_esc = _splat((npx, npx), pos, d, a_px * np.where(leaves, r_esc, 0.0))
+    tir = _splat((npx, npx), pos, d, a_px * np.where(leaves, 0.0, rho))
+    lit_esc[over] /= cov[over]
+    tir[over] /= cov[over]
+    rest = base * np.clip(1.0 - cov, 0.0, None)
+    # a flake whose reflection is totally reflected by the coat sees the layer itself: the mean
+    # of the image (a fixed point, R_TIR = ρ · mean R)
+    mean = float((lit_esc + rest).mean()) / max(1.0 - float(tir.mean()), 1e-6)
+    return lit_esc + tir * mean + rest
 
 
 def analyse_sparkle(image) -> tuple[float, float]:
@@ -346,3 +357,17 @@ def texture_metrics(model: FlakeModel, base_diffuse: float, seed: int = 0,
         out.sparkle[float(a)] = analyse_sparkle(sparkle_image(model, base_diffuse, a, sp, flake_reflectance))
     out.graininess = analyse_graininess(diffuse_image(model, base_diffuse, dp, flake_reflectance))
     return out
+
+
+def dense_sparkle_image(model: FlakeModel, base_diffuse: float, illumination_deg: float, pool: GlintPool,
+                        flake_reflectance: float | None = None, field_mm: float = SPARKLE_FIELD_MM,
+                        source_half_angle_deg: float = SOURCE_HALF_ANGLE_DEG) -> np.ndarray:
+    """:func:`sparkle_image` as a full (npx, npx) array (for analyses that need neighbours)."""
+    n = model.n
+    th = np.radians(illumination_deg)
+    npx = int(round(field_mm * 1000 / PIXEL_UM))
+    t_base = fresnel_transmittance(np.cos(th), n) * fresnel_transmittance(1.0, n) / n ** 2
+    background = base_diffuse * t_base * max(0.0, 1.0 - min(model.coverage, 1.0))
+    g = sparkle_glints(model, illumination_deg, pool, flake_reflectance, field_mm, source_half_angle_deg)
+    img = _splat((npx, npx), g.centres_um, g.diameters_um, g.pixel_fraction * g.full_pixel_value)
+    return img + background
