@@ -2,8 +2,8 @@
 Render-time inputs of an effect coating (``sample.frag`` with ``COATING 1``).
 
 :func:`coating_inputs` turns a sample's :class:`~lbscene.engine.coatings.model.CoatingAppearance`
-into the ``coating`` data texture and the ``sample.*`` values the render graph binds, for the
-light of one view:
+into the ``sample.*`` values the render graph binds (the coating's spectra as a uniform array:
+a fetch from a float texture costs a CPU rasteriser far more), for the light of one view:
 
 * the flop model's spectral weights refitted (same roughnesses) to the measured reflectances
   *projected for the light at the sample* (as the flat path projects its reflectances), and the
@@ -53,31 +53,37 @@ def flake_cell_mm(distance_mm: float, vertical_fov_deg: float) -> float:
     return float(2.0 ** np.round(np.log2(max(footprint, 1e-6))))
 
 
-def flat_coating_values(size_mm=(100.0, 85.0)) -> tuple[dict, np.ndarray]:
-    """Values and texture of a sample without a coating (the graph binds them anyway)."""
+def flat_coating_values(size_mm=(100.0, 85.0)) -> dict:
+    """Values of a sample without a coating (the graph binds them anyway)."""
     values = {
+        "sample.coating_spectra": np.zeros(64, np.float32),
         "sample.coating": 0, "sample.coating_lobes": 0,
         "sample.coating_alphas": np.zeros(3, np.float32), "sample.coating_beckmann": 1,
         "sample.coat_n": 1.5, "sample.coat_diffuse_transmittance": 1.0,
         "sample.size_mm": np.asarray(size_mm, np.float32),
         "sample.flakes": 0, "sample.flake_density_per_mm2": 0.0, "sample.flake_area_mm2": 0.0,
         "sample.flake_alpha": 0.1, "sample.flake_cell_mm": 1.0, "sample.grain_sigma": 0.0,
-        "sample.glint_bin": GLINT_BIN,
+        "sample.glint_bin": GLINT_BIN, "sample.lobe_luminance": np.zeros(3, np.float32),
+        "sample.flake_luminance": 0.0, "sample.glint_spectrum": np.zeros(16, np.float32),
+        "sample.lamp_band_sum": 1.0, "sample.u_axis": np.array([1.0, 0.0, 0.0], np.float32),
         "display.highlight_rolloff": 0, "display.highlight_knee": HIGHLIGHT_KNEE,
         "display.highlight_max": HIGHLIGHT_MAX,
     }
-    return values, np.zeros((COATING_ROWS, 4, 4), np.float32)
+    return values
 
 
 def coating_inputs(appearance, sample, light_1nm: np.ndarray, grid, distance_mm: float,
-                   vertical_fov_deg: float, light_dir=None, view_dir=None) -> tuple[dict, np.ndarray, dict]:
-    """(values, ``coating`` texture (5, 4, 4), info) for one view.
+                   vertical_fov_deg: float, light_dir=None, view_dir=None, emitter_bands=(),
+                   u_axis=(1.0, 0.0, 0.0)) -> tuple[dict, dict]:
+    """(values, info) for one view.
 
     ``appearance``: :class:`~lbscene.engine.coatings.model.CoatingAppearance`; ``sample``:
     :class:`~lbscene.runtimes.scene.SampleSpec`; ``light_1nm``: the spectral irradiance at the
     sample (for the projection of reflectances); ``light_dir``, ``view_dir``: unit directions of
     the geometry's light and of the eye in the sample's frame (z: its normal), for the flakes'
-    mean visible share (default 45° light, view along the normal)."""
+    mean visible share (default 45° light, view along the normal); ``emitter_bands``: the band
+    intensities of the view's emitters (the glints' spectrum: ρ_f times their mean); ``u_axis``:
+    the sample's u axis placed for the view."""
     from lbscene.engine.coatings.flop import MeasuredGeometry
     from lbscene.engine.coatings.instrument import GRAIN_BLUR_UM
     from lbscene.engine.coatings.model import _angles
@@ -85,7 +91,9 @@ def coating_inputs(appearance, sample, light_1nm: np.ndarray, grid, distance_mm:
 
     from .colour_bridge import project_reflectance
 
-    values, tex = flat_coating_values(sample.size_mm)
+    values = flat_coating_values(sample.size_mm)
+    values["sample.u_axis"] = np.asarray(u_axis, np.float32)
+    tex = np.zeros((COATING_ROWS, 4, 4), np.float32)
     measured = [MeasuredGeometry(*_angles(label, asp), project_reflectance(r, light_1nm, grid))
                 for asp, label, r in sample.geometries]
     flop = appearance.flop.refit_linear(measured)
@@ -101,10 +109,15 @@ def coating_inputs(appearance, sample, light_1nm: np.ndarray, grid, distance_mm:
         tex[1 + k] = blocks(flop.lobes[k])
     alphas = np.zeros(3, np.float32)
     alphas[:len(flop.alphas)] = flop.alphas
+    from lbscene.engine.coatings.colorimetry import luminance_weights
+
+    lw = luminance_weights(grid)
+    lobe_lum = np.zeros(3, np.float32)
+    lobe_lum[:len(flop.alphas)] = flop.lobes @ lw
     values.update({"sample.coating": 1, "sample.coating_lobes": int(len(flop.alphas)),
                    "sample.coating_alphas": alphas,
                    "sample.coating_beckmann": 1 if flop.distribution == "beckmann" else 0,
-                   "sample.coat_n": float(flop.n), "sample.coat_diffuse_transmittance": diffuse_transmittance(flop.n)})
+                   "sample.lobe_luminance": lobe_lum, "sample.coat_n": float(flop.n), "sample.coat_diffuse_transmittance": diffuse_transmittance(flop.n)})
     info: dict = {"flop_alphas": [float(a) for a in flop.alphas], "distribution": flop.distribution}
     fl = appearance.flakes
     if fl is not None:
@@ -112,6 +125,11 @@ def coating_inputs(appearance, sample, light_1nm: np.ndarray, grid, distance_mm:
         rho = (project_reflectance(r1, light_1nm, grid) if r1 is not None
                else np.asarray(fl.flake_reflectance, float))
         tex[4] = blocks(rho)
+        values["sample.flake_luminance"] = float(np.asarray(rho) @ lw)
+        mean_i = (np.mean(np.asarray(emitter_bands, float), axis=0) if len(emitter_bands)
+                  else np.zeros(nb))
+        values["sample.glint_spectrum"] = np.ascontiguousarray(blocks(np.asarray(rho) * mean_i).ravel(), np.float32)
+        values["sample.lamp_band_sum"] = float(max(mean_i.sum(), 1e-30))
         cell = flake_cell_mm(distance_mm, vertical_fov_deg)
         g = appearance.predicted.graininess if appearance.predicted is not None else 0.0
         blur_mm = GRAIN_BLUR_UM * 1e-3
@@ -127,4 +145,5 @@ def coating_inputs(appearance, sample, light_1nm: np.ndarray, grid, distance_mm:
                        "sample.grain_sigma": float(sigma), "display.highlight_rolloff": 1})
         info.update({"flake_cell_mm": cell, "grain_sigma": float(sigma), "visible_share": vis,
                      "flakes_per_cell": float(fl.density_per_mm2 * cell * cell)})
-    return values, tex, info
+    values["sample.coating_spectra"] = np.ascontiguousarray(tex[:4].reshape(-1), np.float32)
+    return values, info

@@ -392,6 +392,7 @@ def _vertex_layout() -> list[dict]:
 LIB_SPECTRAL = "lib_spectral.glsl"
 LIB_DISPLAY = "lib_display.glsl"
 LIB_DITHER = "lib_dither.glsl"
+LIB_COATING = "lib_coating.glsl"
 RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
 DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping",
                    "HIGHLIGHT_ROLLOFF": "display.highlight_rolloff"}
@@ -401,14 +402,16 @@ DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_adaptation": "display.a
                     "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
                     "u_highlight_knee": "display.highlight_knee", "u_highlight_max": "display.highlight_max"}
 #: the effect-coating inputs of the sample draw (runtimes/coating.py, sample.frag COATING 1)
-COATING_UNIFORMS = {"u_coating_lobes": "sample.coating_lobes", "u_coating_alphas": "sample.coating_alphas",
+COATING_UNIFORMS = {"u_coating_spectra": "sample.coating_spectra", "u_coating_lobes": "sample.coating_lobes", "u_coating_alphas": "sample.coating_alphas",
                     "u_coating_beckmann": "sample.coating_beckmann", "u_coat_n": "sample.coat_n",
                     "u_coat_diffuse_t": "sample.coat_diffuse_transmittance",
                     "u_sample_size_mm": "sample.size_mm", "u_flakes": "sample.flakes",
                     "u_flake_density_per_mm2": "sample.flake_density_per_mm2",
                     "u_flake_area_mm2": "sample.flake_area_mm2", "u_flake_alpha": "sample.flake_alpha",
                     "u_flake_cell_mm": "sample.flake_cell_mm", "u_grain_sigma": "sample.grain_sigma",
-                    "u_glint_bin": "sample.glint_bin"}
+                    "u_glint_bin": "sample.glint_bin", "u_lobe_luminance": "sample.lobe_luminance",
+                    "u_flake_luminance": "sample.flake_luminance", "u_glint_spectrum": "sample.glint_spectrum",
+                    "u_lamp_band_sum": "sample.lamp_band_sum", "u_sample_u_axis": "sample.u_axis"}
 DITHER_UNIFORMS = {"u_noise_size": "dither.noise_size", "u_dither_amplitude": "dither.amplitude"}
 RESOLVE_UNIFORMS = dict({"u_xyz_weights": "view.xyz_weights"}, **DISPLAY_UNIFORMS, **DITHER_UNIFORMS)
 RESOLVE_TEXTURES = {"u_tone_lut": "tone_lut", "u_noise": "blue_noise"}
@@ -435,11 +438,11 @@ def _surface_draws(to_display: bool) -> list[dict]:
     })
     sample_uniforms.update(COATING_UNIFORMS)
     booth_program = {"vertex": "surface.vert", "fragment": "booth.frag"}
-    sample_program = {"vertex": "surface.vert", "fragment": "sample.frag"}
+    sample_program = {"vertex": "surface.vert", "fragment": "sample.frag", "vertex_include": [LIB_COATING]}
     booth_uniforms = dict(surface_uniforms)
     booth_textures = {"u_materials": "materials"}
     sample_textures = {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
-                       "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag", "u_coating": "coating"}
+                       "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}
     booth_extra: dict = {}
     sample_extra: dict = {"defines": {"COATING": "sample.coating"}}
     if to_display:
@@ -555,7 +558,9 @@ _VALUES_DOC = {
     "sample.f0": "float, Fresnel reflectance at normal incidence of the coat (n = 1.567: 0.0492)",
     "sample.coating": "int, 1: an effect coating (sample.frag COATING 1: flop BRDF, flakes), 0: "
                       "reflectance per geometry (a #define)",
-    "sample.coating_lobes": "int, lobes of the flop BRDF (rows 1.. of the coating texture)",
+    "sample.coating_spectra": "vec4[16], band blocks (projected for the light at the sample) of the diffuse "
+                              "base a (0..3) and lobe weights s_1..s_3 (4..15); zeros without a coating",
+    "sample.coating_lobes": "int, lobes of the flop BRDF",
     "sample.coating_alphas": "vec3, roughness of each lobe inside the clear coat",
     "sample.coating_beckmann": "int, 1: Beckmann lobes, 0: GGX",
     "sample.coat_n": "float, refractive index of the clear coat",
@@ -568,6 +573,11 @@ _VALUES_DOC = {
     "sample.flake_cell_mm": "float, side of the sample-space cell whose flakes one hash draws (per view)",
     "sample.grain_sigma": "float, relative standard deviation of the diffuse part per cell (graininess)",
     "sample.glint_bin": "float, slope-space bin of the half vector for the flakes' draw",
+    "sample.lobe_luminance": "vec3, luminance-weighted lobe weights (the glints' mean is at most the lobes')",
+    "sample.flake_luminance": "float, luminance-weighted flake reflectance",
+    "sample.glint_spectrum": "vec4[4], flake reflectance × the emitters' mean band intensity Ī",
+    "sample.lamp_band_sum": "float, Σ over bands of Ī (an emitter's level relative to the mean)",
+    "sample.u_axis": "vec3, the sample's u axis placed for the view (turned by sample.model in the shader)",
     "display.highlight_rolloff": "int, 1: luminance above display.highlight_knee of white is rolled off "
                                  "(extended Reinhard, display.highlight_max × white → white) instead of "
                                  "clipped (a #define)",
@@ -629,9 +639,6 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
                                "8..23 profile f(θ) at 64 angles 0..180°"},
         "ltc_minv": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.minv"},
         "ltc_mag": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.mag"},
-        "coating": {"format": "rgba32f", "size": [4, 5], "usage": "data", "source": "parameter:sample",
-                    "layout": "rows: 0 diffuse base a, 1..3 lobe weights s_k, 4 flake reflectance; texel x = "
-                              "band block (projected for the light at the sample); zeros without a coating"},
         "sample_reflectance": {"format": "rgba32f", "size": ["sample.geometry_count", n_blocks + 1],
                                "usage": "data", "source": "parameter:sample",
                                "layout": "column per measured geometry sorted by aspecular angle; rows "

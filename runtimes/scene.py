@@ -680,7 +680,7 @@ class SceneBuilder:
 
         appearance = self.coating_appearance()
         if appearance is None:
-            coat_values, coat_tex = flat_coating_values(sm.size_mm)
+            coat_values = flat_coating_values(sm.size_mm)
         else:
             eye = np.asarray(self.camera.position_mm or vs["camera"]["position_mm"], float)
             # the geometry's light and the eye in the sample's frame (its normal n_world; the
@@ -692,9 +692,10 @@ class SceneBuilder:
             frame = np.stack([u_w, np.cross(n_w, u_w), n_w])
             light_dir = frame @ ((illum - c_world[0]) / np.linalg.norm(illum - c_world[0]))
             view_dir = frame @ ((eye - c_world[0]) / np.linalg.norm(eye - c_world[0]))
-            coat_values, coat_tex, coat_info = coating_inputs(
+            coat_values, coat_info = coating_inputs(
                 appearance, sm, e_1nm, grid, float(np.linalg.norm(eye - c_world[0])),
-                self.camera.vertical_fov_deg, light_dir, view_dir)
+                self.camera.vertical_fov_deg, light_dir, view_dir,
+                [e["intensity_bands_W_sr_nm"] for e in ems], u_w)
             info["coating"] = coat_info
         values.update(coat_values)
         info.update({"realised": vs["realised"], "geometry": vs["geometry"],
@@ -707,7 +708,7 @@ class SceneBuilder:
                                     "display_white_xy": [float(v) for v in d.adapted_white_xyz[:2]
                                                          / d.adapted_white_xyz.sum()]}})
         return ViewInputs(name=name, meshes=packed,
-                          textures={"emitters": et, "sample_reflectance": st, "coating": coat_tex},
+                          textures={"emitters": et, "sample_reflectance": st},
                           values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
                           sample_normal=n_world[0], info=info)
 

@@ -6,12 +6,11 @@
 // bulbs as area lights) by linearly transformed cosines (Heitz et al. 2016), with the
 // project's own fitted tables (runtimes/ltc.py) and Schlick's Fresnel.
 // SHADE_TO_DISPLAY: as in booth.frag (0: four RGBA32F targets; 1: 8-bit display colour).
-// COATING 1 (a sample with effect_coating): the flop BRDF fitted to the measured geometries
-// (lbscene.engine.coatings.flop: diffuse base + Cook-Torrance lobes under a clear coat) lit by
-// each emitter integrated over its extent (EMITTER_SEGMENTS points along a tube, a grid over a
-// panel), and, with flakes, sparkle (Poisson counts of glinting flakes per sample-space cell,
-// from a stable hash) and graininess (the diffuse part modulated per cell): see
-// docs "Effect coatings" and lbscene.runtimes.coating.
+// COATING 1 (a sample with effect_coating): the radiance the vertex stage computed from the flop
+// BRDF fitted to the measured geometries with every lamp integrated over its extent
+// (lib_coating.glsl, surface.vert), and, with flakes, sparkle (Poisson counts of glinting flakes
+// per sample-space cell, from a stable hash) and graininess (the diffuse part modulated per cell):
+// see docs "Effect coatings" and lbscene.runtimes.coating.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
@@ -45,21 +44,17 @@ uniform float u_roughness;
 uniform float u_specular_weight;
 uniform float u_f0;
 #if COATING
-uniform sampler2D u_coating;             // row 0 diffuse a, rows 1..3 lobes s_k, row 4 flake ρ_f;
-                                         // texel x = band block
-uniform int u_coating_lobes;
-uniform vec3 u_coating_alphas;
-uniform int u_coating_beckmann;          // 1: Beckmann lobes, 0: GGX
-uniform float u_coat_n;
-uniform float u_coat_diffuse_t;          // the coat's transmittance for diffuse light
+in vec4 v_glint0;                        // per emitter (surface.vert, lib_coating.glsl): λ per view
+in vec4 v_glint1;                        // cell, one glint's radiance factor, half-vector slope
+in vec4 v_glint2;
+in vec4 v_glint3;
+in float v_diffuse_share;                // the diffuse base's share of the smooth radiance
 uniform vec2 u_sample_size_mm;
 uniform int u_flakes;                    // 0: flop only
-uniform float u_flake_density_per_mm2;
-uniform float u_flake_area_mm2;          // mean flake area × mean visible share
-uniform float u_flake_alpha;             // Beckmann α of the flake normals
 uniform float u_flake_cell_mm;
 uniform float u_grain_sigma;             // relative std of the diffuse part per cell
 uniform float u_glint_bin;               // slope-space bin of the half vector
+uniform vec4 u_glint_spectrum[4];        // ρ_f × the emitters' mean band intensity
 #endif
 
 #if SHADE_TO_DISPLAY
@@ -252,8 +247,6 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
 #if COATING
 // ---------------------------------------------------------------- effect coating
 
-const int EMITTER_SEGMENTS = 8;
-
 // Integer hash (PCG, O'Neill 2014 / Jarzynski & Olano 2020) → uniform in (0, 1).
 uint pcg_hash(uint v) {
     uint state = v * 747796405u + 2891336453u;
@@ -287,193 +280,53 @@ float poisson_inverse(float u, float lam) {
     return k;
 }
 
-float fresnel_t(float cos_i, float n) {
-    float ci = clamp(cos_i, 0.0, 1.0);
-    float ct = sqrt(max(1.0 - (1.0 - ci * ci) / (n * n), 0.0));
-    float rs = (ci - n * ct) / max(ci + n * ct, 1e-12);
-    float rp = (n * ci - ct) / max(n * ci + ct, 1e-12);
-    return 1.0 - 0.5 * (rs * rs + rp * rp);
-}
-
-// a direction above the sample (unit, world) → the direction inside the coat that leaves along it
-vec3 into_coat(vec3 d, vec3 N, float n) {
-    vec3 t = (d - N * dot(d, N)) / n;
-    return t + N * sqrt(max(1.0 - dot(t, t), 0.0));
-}
-
-float lobe_d(float c, float a) {
-    float c2 = max(c * c, 1e-9);
-    float a2 = a * a;
-    if (u_coating_beckmann == 1) {
-        return exp(-(1.0 - c2) / (c2 * a2)) / (PI * a2 * c2 * c2);
+// The glints of one emitter in the pixel's cell: g = (λ per view cell, one glint's radiance factor
+// per view cell, half-vector slope); `a` = (cell / view cell)² rescales both to the pixel's cell.
+float glints(vec4 g, ivec3 cell, int em, float a) {
+    if (g.x * a < 1e-7) {
+        return 0.0;
     }
-    float d = c2 * (a2 - 1.0) + 1.0;
-    return a2 / (PI * d * d);
+    ivec2 bin = ivec2(floor(g.zw / u_glint_bin));
+    float lam = g.x * a;
+    float k = poisson_inverse(hash_unit(ivec4(cell.x, cell.y, (bin.x * 7919 + bin.y) * 8 + cell.z, em)), lam);
+    return g.y / a * (k - lam);
 }
 
-// per-flake density of normals (Beckmann, sr⁻¹): D_B(m) cos θ_m
-float flake_pdf(float c) {
-    float c2 = max(c * c, 1e-9);
-    float a2 = u_flake_alpha * u_flake_alpha;
-    return exp(-(1.0 - c2) / (c2 * a2)) / (PI * a2 * c2 * max(c, 1e-5));
-}
-
-vec4 coat_row(int row, int block) {
-    return texelFetch(u_coating, ivec2(block, row), 0);
-}
-
-// One lamp element seen from P: direction l (unit), solid angle dω (sr) and radiance L (four band
-// blocks, W·sr⁻¹·m⁻²·nm⁻¹).  Adds the flop lobes (with glints) to lo*, and the element's
-// irradiance to e* (all of it) and et* (times the coat's transmittance T(θ_l)).
-void coat_element(vec3 N, vec3 V, vec3 Vc, float cv, float tv, vec3 T1, vec3 T2, ivec3 cell,
-                  float cell_mm, int element, vec3 l, float domega, vec4 L0, vec4 L1, vec4 L2, vec4 L3,
-                  inout vec4 lo0, inout vec4 lo1, inout vec4 lo2, inout vec4 lo3,
-                  inout vec4 e0, inout vec4 e1, inout vec4 e2, inout vec4 e3,
-                  inout vec4 et0, inout vec4 et1, inout vec4 et2, inout vec4 et3) {
-    float cl = dot(l, N);
-    if (cl <= 0.0 || domega <= 0.0) {
+// The coating at this pixel: the smooth part from the vertices (flop BRDF with the lamps
+// integrated over their extent, lib_coating.glsl), then per flake cell of the sample the
+// graininess of the diffuse part and the glints (Poisson counts from a stable hash of the cell,
+// the half vector's slope bin and the emitter).
+void coating(out vec4 l0, out vec4 l1, out vec4 l2, out vec4 l3) {
+    l0 = v_irradiance0;
+    l1 = v_irradiance1;
+    l2 = v_irradiance2;
+    l3 = v_irradiance3;
+    if (u_flakes == 0) {
         return;
     }
-    float n = u_coat_n;
-    float tl = fresnel_t(cl, n);
-    float g = cl * domega;
-    e0 += L0 * g; e1 += L1 * g; e2 += L2 * g; e3 += L3 * g;
-    et0 += L0 * (g * tl); et1 += L1 * (g * tl); et2 += L2 * (g * tl); et3 += L3 * (g * tl);
-    vec3 lc = into_coat(l, N, n);
-    float clc = max(dot(lc, N), 1e-4);
-    vec3 h = normalize(lc + Vc);
-    float ch = dot(h, N);
-    // the lobes: (T T / n²) Σ s_k D_k(h') / (4 cos θ_l' cos θ_v'), times L cos θ_l dω
-    float k0 = tl * tv / (n * n) / (4.0 * clc * cv) * g;
-    vec4 s0 = vec4(0.0), s1 = vec4(0.0), s2 = vec4(0.0), s3 = vec4(0.0);
-    for (int j = 0; j < 3; j++) {
-        if (j >= u_coating_lobes) {
-            break;
-        }
-        float d = lobe_d(ch, u_coating_alphas[j]) * k0;
-        s0 += d * coat_row(1 + j, 0); s1 += d * coat_row(1 + j, 1);
-        s2 += d * coat_row(1 + j, 2); s3 += d * coat_row(1 + j, 3);
-    }
-    vec4 b0 = s0 * L0, b1 = s1 * L1, b2 = s2 * L2, b3 = s3 * L3;
-    if (u_flakes == 1) {
-        // expected glinting flakes in the cell: N_cell · p(h') · dω_h',
-        // dω_h' = dω cos θ_l / (n² cos θ_l') / (4 l'·h')
-        float cell_area = cell_mm * cell_mm;
-        float domega_h = domega * cl / (n * n * clc) / (4.0 * max(dot(lc, h), 1e-4));
-        float lam = u_flake_density_per_mm2 * cell_area * flake_pdf(ch) * domega_h;
-        if (lam > 1e-7) {
-            // which flakes: the cell, the half vector's slope-space bin (in the sample's frame), the
-            // lamp element
-            vec2 slope = -vec2(dot(h, T1), dot(h, T2)) / max(ch, 1e-3);
-            ivec2 bin = ivec2(floor(slope / u_glint_bin));
-            float u = hash_unit(ivec4(cell.x, cell.y, (bin.x * 7919 + bin.y) * 8 + cell.z, element));
-            float k = poisson_inverse(u, lam);
-            // one glint: ρ_f T T L over the flake's share of the cell seen along v: a (h'·v')/(cos θ_v' A)
-            float unit = tl * tv * u_flake_area_mm2 * dot(h, Vc) / (cv * cell_area);
-            float f = k / lam - 1.0;
-            b0 += min(lam * unit * coat_row(4, 0) * L0, b0) * f;
-            b1 += min(lam * unit * coat_row(4, 1) * L1, b1) * f;
-            b2 += min(lam * unit * coat_row(4, 2) * L2, b2) * f;
-            b3 += min(lam * unit * coat_row(4, 3) * L3, b3) * f;
-        }
-    }
-    lo0 += b0; lo1 += b1; lo2 += b2; lo3 += b3;
-}
-
-// The coating's radiance at P: lamps integrated over their extent for the lobes, the vertex
-// irradiance for the diffuse base.
-void coating(vec3 P, vec3 N, vec3 V, out vec4 l0, out vec4 l1, out vec4 l2, out vec4 l3) {
-    float n = u_coat_n;
-    vec3 Vc = into_coat(V, N, n);
-    float cv = max(dot(Vc, N), 1e-4);
-    float tv = fresnel_t(dot(V, N), n);
-    // the sample's frame (slopes of the half vector, flake cells): from its uv
-    vec3 dpx = dFdx(P), dpy = dFdy(P);
-    vec2 dux = dFdx(v_uv), duy = dFdy(v_uv);
-    vec3 T1 = dpx * duy.y - dpy * dux.y;
-    T1 = length(T1) > 1e-12 ? normalize(T1 - N * dot(T1, N)) : normalize(cross(N, vec3(0.0, 1.0, 0.0)));
-    vec3 T2 = cross(N, T1);
     vec2 s_mm = v_uv * u_sample_size_mm;
     // the view's cell, or a power-of-two multiple of it where a pixel covers more of the sample
     // (a smaller viewport): each pixel then draws the flakes of its whole footprint
     vec2 sx = dFdx(s_mm), sy = dFdy(s_mm);
     float footprint = sqrt(abs(sx.x * sy.y - sx.y * sy.x));
-    float cell_mm = u_flake_cell_mm * exp2(max(0.0, ceil(log2(max(footprint, 1e-9) / u_flake_cell_mm) - 0.5)));
-    ivec2 cell = ivec2(floor(s_mm / cell_mm));
-    ivec3 cell3 = ivec3(cell, int(log2(cell_mm / u_flake_cell_mm) + 0.5));
-
-    vec4 lo0 = vec4(0.0), lo1 = vec4(0.0), lo2 = vec4(0.0), lo3 = vec4(0.0);
-    vec4 e0 = vec4(0.0), e1 = vec4(0.0), e2 = vec4(0.0), e3 = vec4(0.0);
-    vec4 et0 = vec4(0.0), et1 = vec4(0.0), et2 = vec4(0.0), et3 = vec4(0.0);
-    for (int e = 0; e < u_emitter_count; e++) {
-        vec4 t0 = emitter_texel(e, 0);
-        vec4 t1 = emitter_texel(e, 1);
-        vec4 t2 = emitter_texel(e, 2);
-        vec3 c = t0.xyz;
-        int kind = int(t0.w + 0.5);
-        float hl = t1.w, hw = t2.w;
-        vec4 I0 = emitter_texel(e, 4), I1 = emitter_texel(e, 5), I2 = emitter_texel(e, 6), I3 = emitter_texel(e, 7);
-        if (kind == 1) {                          // tube: segments along its axis
-            float seg = 2.0 * hl / float(EMITTER_SEGMENTS);
-            for (int i = 0; i < EMITTER_SEGMENTS; i++) {
-                vec3 q = c + t1.xyz * (hl * (2.0 * (float(i) + 0.5) / float(EMITTER_SEGMENTS) - 1.0));
-                vec3 d = q - P;
-                float r = length(d);
-                vec3 l = d / r;
-                float sin_ax = length(cross(l, t1.xyz));
-                // Lambertian cylinder: radiance I_ref / (2 r ℓ), seen across 2 r seg sin θ_axis
-                float domega = 2.0 * hw * seg * sin_ax / (r * r);
-                float rad = emitter_profile(e, acos(clamp(dot(-l, t2.xyz), -1.0, 1.0)))
-                            / (4.0 * hl * hw * 1e-6);
-                coat_element(N, V, Vc, cv, tv, T1, T2, cell3, cell_mm, e * 64 + i, l, domega, I0 * rad, I1 * rad,
-                             I2 * rad, I3 * rad, lo0, lo1, lo2, lo3, e0, e1, e2, e3, et0, et1, et2, et3);
-            }
-        } else if (kind == 2) {                   // panel: a 4 × 2 grid of cells
-            vec3 w = emitter_texel(e, 3).xyz;
-            for (int i = 0; i < 4; i++) {
-                for (int j = 0; j < 2; j++) {
-                    vec3 q = c + t1.xyz * (hl * ((float(i) + 0.5) / 2.0 - 1.0))
-                               + w * (hw * ((float(j) + 0.5) - 1.0));
-                    vec3 d = q - P;
-                    float r = length(d);
-                    vec3 l = d / r;
-                    float ce = dot(-l, t2.xyz);
-                    if (ce <= 0.0) {
-                        continue;
-                    }
-                    float domega = (4.0 * hl * hw / 8.0) * ce / (r * r);
-                    float rad = emitter_profile(e, acos(clamp(ce, -1.0, 1.0))) / (4.0 * hl * hw * 1e-6);
-                    coat_element(N, V, Vc, cv, tv, T1, T2, cell3, cell_mm, e * 64 + 2 * i + j, l, domega, I0 * rad,
-                                 I1 * rad, I2 * rad, I3 * rad, lo0, lo1, lo2, lo3, e0, e1, e2, e3,
-                                 et0, et1, et2, et3);
-                }
-            }
-        } else {                                  // sphere: one element of area π r² (= 4 hw²)
-            vec3 d = c - P;
-            float r = length(d);
-            vec3 l = d / r;
-            float domega = 4.0 * hw * hw / (r * r);
-            float rad = emitter_profile(e, acos(clamp(dot(-l, t2.xyz), -1.0, 1.0))) / (4.0 * hw * hw * 1e-6);
-            coat_element(N, V, Vc, cv, tv, T1, T2, cell3, cell_mm, e * 64, l, domega, I0 * rad, I1 * rad, I2 * rad,
-                         I3 * rad, lo0, lo1, lo2, lo3, e0, e1, e2, e3, et0, et1, et2, et3);
-        }
-    }
-    // diffuse base a T(θ_v)/(π n²): the lamps' own light with their T(θ_l), the rest of the vertex
-    // irradiance (inter-reflected light, lamps hidden from the estimate) with the diffuse T̄
-    float kd = tv / (PI * n * n);
+    float level = max(0.0, ceil(log2(max(footprint, 1e-9) / u_flake_cell_mm) - 0.5));
+    float cell_mm = u_flake_cell_mm * exp2(level);
+    ivec3 cell = ivec3(ivec2(floor(s_mm / cell_mm)), int(level));
+    float a = exp2(2.0 * level);
     float grain = 1.0;
-    if (u_flakes == 1 && u_grain_sigma > 0.0) {
-        float ua = hash_unit(ivec4(cell, 104729 + cell3.z, 1));
-        float ub = hash_unit(ivec4(cell, 104729 + cell3.z, 2));
+    if (u_grain_sigma > 0.0) {
+        float ua = hash_unit(ivec4(cell.xy, 104729 + cell.z, 1));
+        float ub = hash_unit(ivec4(cell.xy, 104729 + cell.z, 2));
         // σ per cell falls as 1/side (independent flakes): u_grain_sigma is the view's cell's
-        float sg = u_grain_sigma * u_flake_cell_mm / cell_mm;
-        grain = max(0.0, 1.0 + sg * sqrt(-2.0 * log(ua)) * cos(6.283185307179586 * ub));
+        grain = max(0.0, 1.0 + u_grain_sigma / exp2(level) * sqrt(-2.0 * log(ua)) * cos(6.283185307179586 * ub));
     }
-    kd *= grain;
-    l0 = lo0 + coat_row(0, 0) * kd * (et0 + u_coat_diffuse_t * max(v_irradiance0 - e0, 0.0));
-    l1 = lo1 + coat_row(0, 1) * kd * (et1 + u_coat_diffuse_t * max(v_irradiance1 - e1, 0.0));
-    l2 = lo2 + coat_row(0, 2) * kd * (et2 + u_coat_diffuse_t * max(v_irradiance2 - e2, 0.0));
-    l3 = lo3 + coat_row(0, 3) * kd * (et3 + u_coat_diffuse_t * max(v_irradiance3 - e3, 0.0));
+    float g = glints(v_glint0, cell, 0, a) + glints(v_glint1, cell, 1, a) + glints(v_glint2, cell, 2, a)
+              + glints(v_glint3, cell, 3, a);
+    float k = 1.0 + (grain - 1.0) * v_diffuse_share;
+    l0 = max(l0 * k + u_glint_spectrum[0] * g, 0.0);
+    l1 = max(l1 * k + u_glint_spectrum[1] * g, 0.0);
+    l2 = max(l2 * k + u_glint_spectrum[2] * g, 0.0);
+    l3 = max(l3 * k + u_glint_spectrum[3] * g, 0.0);
 }
 #endif
 
@@ -487,7 +340,7 @@ void main() {
 
 #if COATING
     vec4 l0, l1, l2, l3;
-    coating(P, N, V, l0, l1, l2, l3);
+    coating(l0, l1, l2, l3);
 #else
     vec4 r0, r1, r2, r3;
     reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
