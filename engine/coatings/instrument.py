@@ -65,6 +65,7 @@ from .flakes import FlakeModel, sample_normals
 from .optics import diffuse_transmittance, fresnel_transmittance, refract_into_coat
 
 __all__ = [
+    "MODEL_VERSION",
     "PIXEL_UM",
     "SPARKLE_FIELD_MM",
     "GRAIN_FIELD_MM",
@@ -86,6 +87,8 @@ __all__ = [
     "texture_metrics",
 ]
 
+#: bump when the simulated instrument or the flake model changes what it reads (cached fits)
+MODEL_VERSION = "coating-instrument-2"
 PIXEL_UM = 10.0
 SPARKLE_FIELD_MM = 60.0
 GRAIN_FIELD_MM = 4.0

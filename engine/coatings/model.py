@@ -16,7 +16,7 @@ import numpy as np
 from .fit_texture import TextureFit, TextureReadings, fit_flakes
 from .flakes import DEFAULT_FLAKE_REFLECTANCE, FlakeModel
 from .flop import FlopModel, MeasuredGeometry, fit_flop
-from .instrument import TextureMetrics, texture_metrics
+from .instrument import MODEL_VERSION, TextureMetrics, texture_metrics
 
 __all__ = ["CoatingAppearance", "coating_appearance", "PREDICTION_SEED"]
 
@@ -116,7 +116,7 @@ def coating_appearance(sample, grid=None, predict: bool = True) -> CoatingAppear
             return np.array([m.density_per_mm2, m.median_diameter_um, m.alpha])
 
         x = cached_array("coating_flakes", (readings.vector(), rho, np.array([base_y, n, tex.diameter_spread])),
-                         ("coating-flakes-1",), run, shape=(3,))
+                         (MODEL_VERSION,), run, shape=(3,))
         fit = holder.get("fit")
         flakes = FlakeModel(float(x[0]), float(x[1]), tex.diameter_spread, float(x[2]), rho, n)
     predicted = None
