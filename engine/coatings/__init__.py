@@ -8,7 +8,11 @@ Effect coatings (metallic and pearlescent paints): colour flop, sparkle and grai
 * :mod:`.fit_texture` — flake parameters from the instrument's readings;
 * :mod:`.model` — the coating of a sample as the renderer uses it;
 * :mod:`.colorimetry` — CIELAB and ΔE00 of band reflectances (colour-science);
-* :mod:`.mitsuba_flakes` — explicit flakes rendered by Mitsuba 3, the texture's outside truth.
+* :mod:`.mitsuba_flakes` — explicit flakes rendered by Mitsuba 3, the texture's outside truth;
+* :mod:`.visual` — the model's texture metrics of a visual-test case.
+
+The realtime runtime's side is :mod:`lbscene.runtimes.coating` (values the render graph binds)
+and the shaders ``lib_coating.glsl`` (vertex stage) and ``sample.frag`` (``COATING 1``).
 """
 
 from .flakes import FlakeModel
