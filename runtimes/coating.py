@@ -13,16 +13,20 @@ a fetch from a float texture costs a CPU rasteriser far more), for the light of 
 * the flake cell: the sample-space square whose flakes one hash draws.  Its side is the
   footprint of one pixel of a 768-pixel-high view at the view's camera distance
   (``REFERENCE_HEIGHT_PX``), rounded to a power of two of a millimetre, so it is a property of
-  the view, the same in every runtime and at every viewport size (a smaller viewport
-  subsamples the cells), and it does not change when the sample tilts;
+  the view, the same in every runtime, and it does not change when the sample tilts (where a
+  pixel covers more of the sample — a smaller viewport — the fragment shader takes a
+  power-of-two multiple of it and rescales λ and the grain);
+* the glints' spectrum: the flake reflectance times the mean band intensity of the view's
+  emitters (the lamps of one lighting share a spectrum; each emitter's level is kept);
 * the graininess per cell: the instrument model's diffuse-image contrast ``G`` (per cent, at a
   Gaussian blur of σ_b = 50 µm, effective area :math:`4πσ_b^2`) scaled to the cell's area as for
   independent flakes, :math:`σ_{cell} = (G/100) \\sqrt{4 π σ_b^2} / s`.
 
 The highlight roll-off of the display model (``display.highlight_*``) is on whenever the sample
 has flakes: luminance above ``HIGHLIGHT_KNEE`` of the display white is compressed (extended
-Reinhard) so that glints up to ``HIGHLIGHT_MAX`` × white keep distinct levels and their hue
-instead of all clipping to white; the same curve applies to every pixel of the frame.
+Reinhard) so that glints up to ``HIGHLIGHT_MAX`` × white keep distinct levels (and their
+chromaticity, until the gamut mapping must desaturate) instead of all clipping to white; the same
+curve applies to every pixel of the frame.
 """
 
 from __future__ import annotations

@@ -707,8 +707,7 @@ class SceneBuilder:
                                                  if y_white > 0 else None),
                                     "display_white_xy": [float(v) for v in d.adapted_white_xyz[:2]
                                                          / d.adapted_white_xyz.sum()]}})
-        return ViewInputs(name=name, meshes=packed,
-                          textures={"emitters": et, "sample_reflectance": st},
+        return ViewInputs(name=name, meshes=packed, textures={"emitters": et, "sample_reflectance": st},
                           values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
                           sample_normal=n_world[0], info=info)
 
