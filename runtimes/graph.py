@@ -392,12 +392,26 @@ def _vertex_layout() -> list[dict]:
 LIB_SPECTRAL = "lib_spectral.glsl"
 LIB_DISPLAY = "lib_display.glsl"
 LIB_DITHER = "lib_dither.glsl"
+LIB_COATING = "lib_coating.glsl"
 RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
-DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping"}
+DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping",
+                   "HIGHLIGHT_ROLLOFF": "display.highlight_rolloff"}
 DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_adaptation": "display.adaptation",
                     "u_xyz_offset": "display.xyz_offset",
                     "u_xyz_to_rgb": "display.xyz_to_rgb", "u_tone_params": "display.tone_params",
-                    "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span"}
+                    "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
+                    "u_highlight_knee": "display.highlight_knee", "u_highlight_max": "display.highlight_max"}
+#: the effect-coating inputs of the sample draw (runtimes/coating.py, sample.frag COATING 1)
+COATING_UNIFORMS = {"u_coating_spectra": "sample.coating_spectra", "u_coating_lobes": "sample.coating_lobes", "u_coating_alphas": "sample.coating_alphas",
+                    "u_coating_beckmann": "sample.coating_beckmann", "u_coat_n": "sample.coat_n",
+                    "u_coat_diffuse_t": "sample.coat_diffuse_transmittance",
+                    "u_sample_size_mm": "sample.size_mm", "u_flakes": "sample.flakes",
+                    "u_flake_density_per_mm2": "sample.flake_density_per_mm2",
+                    "u_flake_area_mm2": "sample.flake_area_mm2", "u_flake_alpha": "sample.flake_alpha",
+                    "u_flake_cell_mm": "sample.flake_cell_mm", "u_grain_sigma": "sample.grain_sigma",
+                    "u_glint_bin": "sample.glint_bin", "u_lobe_luminance": "sample.lobe_luminance",
+                    "u_flake_luminance": "sample.flake_luminance", "u_glint_spectrum": "sample.glint_spectrum",
+                    "u_lamp_band_sum": "sample.lamp_band_sum", "u_sample_u_axis": "sample.u_axis"}
 DITHER_UNIFORMS = {"u_noise_size": "dither.noise_size", "u_dither_amplitude": "dither.amplitude"}
 RESOLVE_UNIFORMS = dict({"u_xyz_weights": "view.xyz_weights"}, **DISPLAY_UNIFORMS, **DITHER_UNIFORMS)
 RESOLVE_TEXTURES = {"u_tone_lut": "tone_lut", "u_noise": "blue_noise"}
@@ -422,14 +436,15 @@ def _surface_draws(to_display: bool) -> list[dict]:
         "u_specular_weight": "sample.specular_weight",
         "u_f0": "sample.f0",
     })
+    sample_uniforms.update(COATING_UNIFORMS)
     booth_program = {"vertex": "surface.vert", "fragment": "booth.frag"}
-    sample_program = {"vertex": "surface.vert", "fragment": "sample.frag"}
+    sample_program = {"vertex": "surface.vert", "fragment": "sample.frag", "vertex_include": [LIB_COATING]}
     booth_uniforms = dict(surface_uniforms)
     booth_textures = {"u_materials": "materials"}
     sample_textures = {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
                        "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}
     booth_extra: dict = {}
-    sample_extra: dict = {}
+    sample_extra: dict = {"defines": {"COATING": "sample.coating"}}
     if to_display:
         # diffuse booth surfaces: bands → XYZ per vertex (surface.vert, VERTEX_XYZ 1), then
         # display and dither per pixel; the sample: everything per pixel
@@ -440,7 +455,8 @@ def _surface_draws(to_display: bool) -> list[dict]:
         booth_textures.update(RESOLVE_TEXTURES)
         sample_textures.update(RESOLVE_TEXTURES)
         booth_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1}, VERTEX_XYZ={"value": 1})}
-        sample_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1})}
+        sample_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1},
+                                        COATING="sample.coating")}
 
     def booth(name, mesh, cull):
         return dict({"name": name, "mesh": mesh, "cull_back_faces": cull, "program": dict(booth_program),
@@ -540,6 +556,33 @@ _VALUES_DOC = {
     "sample.roughness": "float, GGX roughness r (α = r²) of the clear coat",
     "sample.specular_weight": "float, gloss_GU / 100 (0: matte, no highlights)",
     "sample.f0": "float, Fresnel reflectance at normal incidence of the coat (n = 1.567: 0.0492)",
+    "sample.coating": "int, 1: an effect coating (sample.frag COATING 1: flop BRDF, flakes), 0: "
+                      "reflectance per geometry (a #define)",
+    "sample.coating_spectra": "vec4[16], band blocks (projected for the light at the sample) of the diffuse "
+                              "base a (0..3) and lobe weights s_1..s_3 (4..15); zeros without a coating",
+    "sample.coating_lobes": "int, lobes of the flop BRDF",
+    "sample.coating_alphas": "vec3, roughness of each lobe inside the clear coat",
+    "sample.coating_beckmann": "int, 1: Beckmann lobes, 0: GGX",
+    "sample.coat_n": "float, refractive index of the clear coat",
+    "sample.coat_diffuse_transmittance": "float, transmittance of the clear coat for diffuse light",
+    "sample.size_mm": "vec2, sample width and height (uv × size = sample-space millimetres)",
+    "sample.flakes": "int, 1: sparkle and graininess from flakes",
+    "sample.flake_density_per_mm2": "float, flakes per mm²",
+    "sample.flake_area_mm2": "float, mean flake area × the mean share of a glint other flakes leave visible",
+    "sample.flake_alpha": "float, Beckmann α of the flake normals",
+    "sample.flake_cell_mm": "float, side of the sample-space cell whose flakes one hash draws (per view)",
+    "sample.grain_sigma": "float, relative standard deviation of the diffuse part per cell (graininess)",
+    "sample.glint_bin": "float, slope-space bin of the half vector for the flakes' draw",
+    "sample.lobe_luminance": "vec3, luminance-weighted lobe weights (the glints' mean is at most the lobes')",
+    "sample.flake_luminance": "float, luminance-weighted flake reflectance",
+    "sample.glint_spectrum": "vec4[4], flake reflectance × the emitters' mean band intensity Ī",
+    "sample.lamp_band_sum": "float, Σ over bands of Ī (an emitter's level relative to the mean)",
+    "sample.u_axis": "vec3, the sample's u axis placed for the view (turned by sample.model in the shader)",
+    "display.highlight_rolloff": "int, 1: luminance above display.highlight_knee of white is rolled off "
+                                 "(extended Reinhard, display.highlight_max × white → white) instead of "
+                                 "clipped (a #define)",
+    "display.highlight_knee": "float, fraction of the display white where the roll-off starts",
+    "display.highlight_max": "float, luminance (× display white) the roll-off brings to white",
     "ltc.size": "int, side of the LTC tables",
     "display.exposure": "float, absolute XYZ → display XYZ scale (cd/m² per cd/m²)",
     "display.adaptation": "mat3, chromatic adaptation: XYZ under the lighting → corresponding XYZ "

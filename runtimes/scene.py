@@ -617,6 +617,29 @@ class SceneBuilder:
             "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
             "dither.amplitude": 1.0 if self.dither else 0.0,
         }
+        # the effect coating (or the neutral values every sample draw binds)
+        from .coating import coating_inputs, flat_coating_values
+
+        appearance = self.coating_appearance()
+        if appearance is None:
+            coat_values = flat_coating_values(sm.size_mm)
+        else:
+            eye = np.asarray(self.camera.position_mm or vs["camera"]["position_mm"], float)
+            # the geometry's light and the eye in the sample's frame (its normal n_world; the
+            # sample's u axis turns with the platform), for the flakes' visible share
+            n_w = n_world[0] / np.linalg.norm(n_world[0])
+            u_w = np.asarray(sp.get("u_axis", [1.0, 0.0, 0.0]), float) @ R.T
+            u_w = u_w - n_w * (u_w @ n_w)
+            u_w /= np.linalg.norm(u_w)
+            frame = np.stack([u_w, np.cross(n_w, u_w), n_w])
+            light_dir = frame @ ((illum - c_world[0]) / np.linalg.norm(illum - c_world[0]))
+            view_dir = frame @ ((eye - c_world[0]) / np.linalg.norm(eye - c_world[0]))
+            coat_values, coat_info = coating_inputs(
+                appearance, sm, e_1nm, grid, float(np.linalg.norm(eye - c_world[0])),
+                self.camera.vertical_fov_deg, light_dir, view_dir,
+                [e["intensity_bands_W_sr_nm"] for e in ems], u_w)
+            info["coating"] = coat_info
+        values.update(coat_values)
         info.update({"realised": vs["realised"], "geometry": vs["geometry"],
                      "platform_rotation_deg": vs["platform_rotation_deg"],
                      "sample_illuminance_lx": float(683.0 * e_1nm @ cmfs_1nm()[:, 1]),
@@ -629,6 +652,15 @@ class SceneBuilder:
         return ViewInputs(name=name, meshes=packed, textures={"emitters": et, "sample_reflectance": st},
                           values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
                           sample_normal=n_world[0], info=info)
+
+    def coating_appearance(self):
+        """The sample's :class:`~lbscene.engine.coatings.model.CoatingAppearance` (None without
+        ``effect_coating``), computed once per builder (fits cached on disk)."""
+        if not hasattr(self, "_coating"):
+            from lbscene.engine.coatings.model import coating_appearance
+
+            self._coating = coating_appearance(self.sample, self.ir.grid)
+        return self._coating
 
     def _illumination_centre(self) -> np.ndarray:
         from .graph import _illumination_centre

@@ -3,17 +3,20 @@ The sample document: what is put on the booth's platform.
 
 A multi-angle spectrophotometer (BYK-mac i, X-Rite MA-T12…) reports one
 spectral reflectance factor per measurement geometry; solid colours may give
-just one.  The renderer interpolates between measured geometries.
+just one.  The renderer interpolates between measured geometries; a sample with
+``effect_coating:`` is rendered with a BRDF fitted to them and with flakes
+(:mod:`lbscene.schemas.coating`).
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from .base import Document, Provenance, StrictModel
 from .booth import GeometryName, parse_geometry_name
+from .coating import EffectCoating
 from .spectrum import SpectrumSpec
 
 __all__ = ["Sample", "GeometryReflectance"]
@@ -41,6 +44,9 @@ class Sample(Document):
     by_geometry: list[GeometryReflectance] = Field(default_factory=list, max_length=64)
     gloss_GU: float = Field(0.0, ge=0, le=200, description="Specular gloss at 60° in gloss units.")
     roughness: float = Field(0.1, ge=0, le=1, description="Microfacet roughness of the clear coat.")
+    effect_coating: EffectCoating | None = Field(
+        None, description="Metallic or pearlescent coating: a BRDF fitted to `by_geometry` (colour "
+                          "flop) and flakes (sparkle, graininess); see the 'Effect coatings' page.")
 
     @model_validator(mode="after")
     def _has_reflectance(self):
@@ -53,3 +59,13 @@ class Sample(Document):
         for n in names:
             parse_geometry_name(n)
         return self
+
+    @field_validator("effect_coating")
+    @classmethod
+    def _enough_geometries(cls, v, info: ValidationInfo):
+        if v is not None and "by_geometry" in info.data:
+            have, need = len(info.data["by_geometry"]), v.flop.lobes + 2
+            if have < need:
+                raise ValueError(f"an effect coating with {v.flop.lobes} lobe(s) needs reflectances at {need} "
+                                 f"or more geometries in `by_geometry` (has {have})")
+        return v

@@ -2,7 +2,8 @@
 The visual-test session: observers judge the rendering (the web viewer's test mode)
 against the physical sample in the booth, case by case.
 
-A case is one sample × viewing geometry × lighting; every observer sees every case
+A case is one sample × viewing geometry × lighting (× judged attribute: colour, or the sparkle
+or graininess of an effect coating); every observer sees every case
 ``repeats`` times, in a randomised, balanced order (see
 :func:`lbscene.engine.visual.protocol.plan_trials`), and answers on a grey scale
 (ISO 105-A02 style, 5 = no visible difference) or with an estimated ΔE.  This is the
@@ -21,7 +22,11 @@ from .base import Document, Identifier, StrictModel
 from .booth import GeometryName
 from .refs import FileRef
 
-__all__ = ["VisualSession", "Observer", "ResponseScale", "TrialOrder"]
+__all__ = ["VisualSession", "Observer", "ResponseScale", "TrialOrder", "ATTRIBUTES"]
+
+#: What an observer judges in a case: the colour, or a texture attribute of an effect coating
+#: (sparkle under the booth's lamp, graininess: the light/dark pattern).
+ATTRIBUTES = ("colour", "sparkle", "graininess")
 
 
 class Observer(StrictModel):
@@ -73,13 +78,18 @@ class VisualSession(Document):
     geometries: list[GeometryName] = Field(min_length=1, description="Viewing geometries of the booth.")
     lightings: list[str] = Field(min_length=1, description="Lighting configurations of the booth.")
     repeats: int = Field(1, ge=1, le=20, description="How often each observer sees each case.")
+    attributes: list[Literal["colour", "sparkle", "graininess"]] = Field(
+        default_factory=lambda: ["colour"], min_length=1,
+        description="What is judged: each sample × geometry × lighting is a case per attribute (colour; "
+                    "sparkle and graininess for effect coatings: the match of that texture attribute).")
     order: TrialOrder = TrialOrder()
     response: ResponseScale = ResponseScale()
 
     @model_validator(mode="after")
     def _unique(self):
         for what, items in (("observer id", [o.id for o in self.observers]), ("sample", self.samples),
-                            ("geometry", self.geometries), ("lighting", self.lightings)):
+                            ("geometry", self.geometries), ("lighting", self.lightings),
+                            ("attribute", self.attributes)):
             dup = sorted({x for x in items if items.count(x) > 1})
             if dup:
                 raise ValueError(f"duplicate {what}: {', '.join(dup)}")

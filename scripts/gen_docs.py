@@ -32,7 +32,8 @@ REPO = Path(__file__).resolve().parents[1]
 #: unit suffixes of field names (the project's convention: units in every name)
 UNITS = [
     ("_W_sr_m2_nm", "W·sr⁻¹·m⁻²·nm⁻¹"), ("_W_sr_nm", "W·sr⁻¹·nm⁻¹"), ("_W_nm", "W·nm⁻¹"),
-    ("_cd_m2", "cd/m²"), ("_mm2", "mm²"), ("_mm", "mm"), ("_nm", "nm"), ("_deg", "°"), ("_lx", "lx"),
+    ("_cd_m2", "cd/m²"), ("_per_mm2", "mm⁻²"), ("_mm2", "mm²"), ("_mm", "mm"), ("_um", "µm"),
+    ("_nm", "nm"), ("_deg", "°"), ("_lx", "lx"),
     ("_lm", "lm"), ("_cd", "cd"), ("_K", "K"), ("_W", "W"), ("_GU", "gloss units"), ("_percent", "%"),
     ("_s", "s"), ("_px", "px"),
 ]

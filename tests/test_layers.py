@@ -33,6 +33,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("engine.files", ("lbscene.engine", "lbscene.engine.files")),
     ("engine.spectra", ("lbscene.engine.spectra",)),
     ("engine.colour", ("lbscene.engine.colour",)),
+    ("engine.coatings", ("lbscene.engine.coatings",)),
     ("engine.light", ("lbscene.engine.light",)),
     ("engine.scene", ("lbscene.engine.scene",)),
     ("engine.truth", ("lbscene.engine.truth",)),

@@ -15,6 +15,8 @@ Examples
 
 from __future__ import annotations
 
+from typing import Any
+
 import hashlib
 from dataclasses import dataclass
 
@@ -39,6 +41,10 @@ class SampleSpec:
     size_mm: tuple[float, float] = (100.0, 85.0)
     gloss_GU: float = 0.0
     roughness: float = 0.1
+    #: ``effect_coating`` of the sample document (:class:`lbscene.schemas.coating.EffectCoating`)
+    coating: Any = None
+    #: its flakes' reflectance on the 1 nm grid (None: the default)
+    flake_reflectance_1nm: np.ndarray | None = None
 
     @classmethod
     def flat(cls, reflectance_1nm, name: str = "flat", size_mm=(100.0, 85.0), gloss_GU: float = 0.0,
@@ -59,10 +65,19 @@ class SampleSpec:
             geoms.append((0.0, "all", evaluate_spectrum(m.reflectance, doc.resolve, "reflectance",
                                                          display=m.name)))
         geoms.sort(key=lambda g: g[0])
-        return cls(m.name, geoms, tuple(m.size_mm), m.gloss_GU, m.roughness)
+        coat = m.effect_coating
+        flake_r = None
+        if coat is not None and coat.texture is not None and coat.texture.flake_reflectance is not None:
+            flake_r = evaluate_spectrum(coat.texture.flake_reflectance, doc.resolve, "reflectance",
+                                        display=f"{m.name} flake_reflectance")
+        return cls(m.name, geoms, tuple(m.size_mm), m.gloss_GU, m.roughness, coat, flake_r)
 
     def digest(self) -> str:
         h = hashlib.sha256(repr((self.name, self.size_mm, self.gloss_GU, self.roughness)).encode())
+        if self.coating is not None:
+            h.update(self.coating.model_dump_json().encode())
+        if self.flake_reflectance_1nm is not None:
+            h.update(np.asarray(self.flake_reflectance_1nm, float).tobytes())
         for a, label, r in self.geometries:
             h.update(f"{a}:{label}".encode())
             h.update(np.asarray(r, float).tobytes())

@@ -39,12 +39,14 @@ __all__ = [
     "plan_trials",
     "read_results",
     "MAX_RESULTS_BYTES",
+    "case_key",
+    "case_attribute",
 ]
 
 RESULTS_FORMAT = "lbscene.visual_results"
 #: Columns of a results CSV (the viewer writes them in this order).
 RESULT_COLUMNS = ("session", "observer", "repeat", "order", "lighting", "geometry", "sample", "display",
-                  "score", "response_time_ms")
+                  "score", "response_time_ms", "attribute")
 
 
 @dataclass
@@ -62,16 +64,28 @@ class LoadedSession:
         return self.doc.model
 
     @property
-    def cases(self) -> list[tuple[str, str, str]]:
-        """(lighting, geometry, sample name), in the file's order."""
-        return [(lt, g, s.name) for lt in self.model.lightings for g in self.model.geometries
-                for s in self.samples]
+    def cases(self) -> list[tuple]:
+        """(lighting, geometry, sample name), in the file's order; a case that judges a texture
+        attribute has it as a fourth element (:func:`case_key`)."""
+        return [case_key(lt, g, s.name, a) for lt in self.model.lightings for g in self.model.geometries
+                for s in self.samples for a in self.model.attributes]
 
     def to_viewer(self) -> dict:
         """What the viewer's test mode needs (embedded in the web export)."""
         m = self.model
         return {"name": m.name, "hash": self.hash, "observers": [{"id": o.id} for o in m.observers],
                 "repeats": m.repeats, "response": m.response.model_dump(), "trials": self.trials}
+
+
+def case_key(lighting: str, geometry: str, sample: str, attribute: str = "colour") -> tuple:
+    """A case: ``(lighting, geometry, sample)`` for colour (as sessions without attributes have
+    always named them), ``(lighting, geometry, sample, attribute)`` for sparkle and graininess."""
+    return (lighting, geometry, sample) if attribute == "colour" else (lighting, geometry, sample, attribute)
+
+
+def case_attribute(case: tuple) -> str:
+    """The attribute a case judges."""
+    return case[3] if len(case) > 3 else "colour"
 
 
 def balanced_blocks(n_cases: int, n_blocks: int, seed: int = 0) -> list[list[int]]:
@@ -90,9 +104,10 @@ def balanced_blocks(n_cases: int, n_blocks: int, seed: int = 0) -> list[list[int
 
 def plan_trials(session_model, sample_names: list[str]) -> list[dict]:
     """Every trial of a session: observer, repeat (1…), order (1… within the observer's
-    session), lighting, geometry, sample."""
+    session), lighting, geometry, sample, attribute."""
     m = session_model
-    cases = [(lt, g, s) for lt in m.lightings for g in m.geometries for s in sample_names]
+    cases = [(lt, g, s, a) for lt in m.lightings for g in m.geometries for s in sample_names
+             for a in m.attributes]
     blocks = [(o.id, r) for o in m.observers for r in range(1, m.repeats + 1)]
     orders = balanced_blocks(len(cases), len(blocks), m.order.seed)
     trials = []
@@ -100,9 +115,9 @@ def plan_trials(session_model, sample_names: list[str]) -> list[dict]:
     for (obs, rep), order in zip(blocks, orders):
         for i in order:
             counter[obs] = counter.get(obs, 0) + 1
-            lt, g, s = cases[i]
+            lt, g, s, a = cases[i]
             trials.append({"observer": obs, "repeat": rep, "order": counter[obs], "lighting": lt,
-                           "geometry": g, "sample": s})
+                           "geometry": g, "sample": s, "attribute": a})
     return trials
 
 
@@ -179,7 +194,8 @@ def _text(value, what: str, where) -> str:
 
 def read_results(paths, session: LoadedSession) -> list[dict]:
     """Rows of results files (CSV with :data:`RESULT_COLUMNS` or the viewer's JSON),
-    checked against the session: each row gets ``case`` = (lighting, geometry, sample).
+    checked against the session: each row gets ``case`` = (lighting, geometry, sample[, attribute])
+    (:func:`case_key`; files without an ``attribute`` column judge colour).
 
     Every file is read bounded (:data:`MAX_RESULTS_BYTES`), as UTF-8 text; every field is
     checked for its type (a JSON score of ``true``, ``"NaN"``, a list …) with the row's line (CSV)
@@ -237,11 +253,15 @@ def read_results(paths, session: LoadedSession) -> list[dict]:
                                expected="observer, repeat, lighting, geometry, sample, score")
             score = _number(it["score"], "score", where)
             repeat = _number(it["repeat"], "repeat", where, whole=True, minimum=1)
-            case = tuple(_text(it[k], k, where) for k in ("lighting", "geometry", "sample"))
+            attribute = it.get("attribute")
+            case = case_key(*(_text(it[k], k, where) for k in ("lighting", "geometry", "sample")),
+                            _text(attribute, "attribute", where) if attribute not in (None, "") else "colour")
             obs = _text(it["observer"], "observer", where)
             if case not in cases:
                 raise _err("LB711", f"{item}case {' / '.join(case)} is not in session {m.name!r}", shown,
-                           line or 0, expected="a lighting, geometry and sample of the session")
+                           line or 0, expected="a lighting, geometry and sample of the session"
+                           if m.attributes == ["colour"] else
+                           "a lighting, geometry, sample and attribute of the session")
             if obs not in observers:
                 raise _err("LB711", f"{item}observer {obs!r} is not in session {m.name!r}", shown, line or 0,
                            expected=f"one of {', '.join(sorted(observers))}")

@@ -23,7 +23,10 @@ from lbscene.engine.files.diagnostics import LbsceneUserError
 
 from .stats import inter_observer_stress, intra_observer_stress, stress, visual_differences
 
-__all__ = ["analyse", "read_model_delta_e", "render_html"]
+__all__ = ["analyse", "read_model_delta_e", "read_model_texture", "render_html", "TEXTURE_METRIC"]
+
+#: The model metric set beside each texture attribute's scores (and ranked against them).
+TEXTURE_METRIC = {"sparkle": "glint_contrast", "graininess": "grain_contrast_percent"}
 
 
 def _f(x):
@@ -64,15 +67,62 @@ def read_model_delta_e(path: Path, session) -> dict:
             raise LbsceneUserError.single("LB710", "delta_e00 must be a finite number ≥ 0", shown, line, 1,
                                           value=repr(d["delta_e00"][:40]), expected="a ΔE00 ≥ 0")
         out[(d["lighting"], d["geometry"], d["sample"])] = de
-    missing = [c for c in session.cases if c not in out]
+    missing = [c for c in session.cases if len(c) == 3 and c not in out]
     if missing:
         raise LbsceneUserError.single("LB711", f"no model ΔE00 for case {' / '.join(missing[0])}", shown,
                                       expected="one row per case of the session")
     return out
 
 
-def analyse(rows: list[dict], session, model_delta_e: dict | None = None) -> dict:
-    """Statistics of a session's results (JSON-ready)."""
+def read_model_texture(path: Path, session) -> dict:
+    """``model-texture.csv`` (the web export's; columns ``lighting,geometry,sample`` and
+    :data:`lbscene.engine.coatings.visual.TEXTURE_COLUMNS`) → {(lighting, geometry, sample):
+    metrics}; every texture case of the session needs a row."""
+    from lbscene.engine.coatings.visual import TEXTURE_COLUMNS
+    from lbscene.engine.files.load import display_path
+
+    from lbscene.engine.files.yamlio import csv_rows, read_text_bounded
+
+    from .protocol import MAX_RESULTS_BYTES
+
+    shown = display_path(Path(path))
+    table = csv_rows(read_text_bounded(Path(path), shown, MAX_RESULTS_BYTES), shown)
+    need = ("lighting", "geometry", "sample") + TEXTURE_COLUMNS
+    header = [h.strip() for h in table[0][1]] if table else []
+    if any(c not in header for c in need):
+        raise LbsceneUserError.single("LB710", "missing column(s)", shown, 1, 1,
+                                      expected=f"a CSV with columns {', '.join(need)}")
+    out = {}
+    for line, row in table[1:]:
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise LbsceneUserError.single("LB710", f"row has {len(row)} fields, header has {len(header)}",
+                                          shown, line, 1)
+        d = dict(zip(header, row))
+        try:
+            values = {c: float(d[c]) for c in TEXTURE_COLUMNS}
+        except ValueError:
+            values = {}
+        if len(values) != len(TEXTURE_COLUMNS) or not all(math.isfinite(v) for v in values.values()):
+            raise LbsceneUserError.single("LB710", "texture metrics must be finite numbers", shown, line, 1)
+        out[(d["lighting"], d["geometry"], d["sample"])] = values
+    missing = [c for c in session.cases if len(c) == 4 and c[:3] not in out]
+    if missing:
+        raise LbsceneUserError.single("LB711", f"no model texture metrics for case {' / '.join(missing[0])}",
+                                      shown, expected="one row per lighting, geometry and sample of the "
+                                                      "session's texture cases (an effect coating with flakes)")
+    return out
+
+
+def analyse(rows: list[dict], session, model_delta_e: dict | None = None,
+            model_texture: dict | None = None) -> dict:
+    """Statistics of a session's results (JSON-ready).  Colour cases are set against the model's
+    ΔE00 (STRESS); sparkle and graininess cases beside the model's texture metrics
+    (:mod:`lbscene.engine.coatings.visual`), with the rank correlation of the panel's mean ΔV and
+    the attribute's metric (:data:`TEXTURE_METRIC`) over the cases."""
+    from .protocol import case_attribute
+
     rtype = session.model.response.type
     dv = visual_differences([r["score"] for r in rows], rtype)
     for r, v in zip(rows, dv):
@@ -84,11 +134,16 @@ def analyse(rows: list[dict], session, model_delta_e: dict | None = None) -> dic
             continue
         sc = np.array([r["score"] for r in mine])
         rt = np.array([r["response_time_ms"] for r in mine])
-        cases.append({"lighting": case[0], "geometry": case[1], "sample": case[2], "n": len(mine),
+        attr = case_attribute(case)
+        colour = attr == "colour"
+        cases.append({"lighting": case[0], "geometry": case[1], "sample": case[2], "attribute": attr,
+                      "n": len(mine),
                       "mean_score": _f(sc.mean()), "sd_score": _f(sc.std(ddof=1) if len(sc) > 1 else 0.0),
                       "mean_delta_v": _f(np.mean([r["delta_v"] for r in mine])),
                       "median_response_time_ms": _f(np.nanmedian(rt)) if np.isfinite(rt).any() else None,
-                      "model_delta_e00": None if model_delta_e is None else _f(model_delta_e[case])})
+                      "model_delta_e00": None if model_delta_e is None or not colour else _f(model_delta_e[case]),
+                      "model_texture": (None if model_texture is None or colour
+                                        else model_texture.get(case[:3]))})
     intra = intra_observer_stress(rows)
     inter = inter_observer_stress(rows)
     finite = [v for v in intra.values() if not math.isnan(v)]
@@ -96,9 +151,22 @@ def analyse(rows: list[dict], session, model_delta_e: dict | None = None) -> dic
                "inter_observer_stress_mean": _f(np.mean([v for v in inter.values() if not math.isnan(v)]))
                if any(not math.isnan(v) for v in inter.values()) else None,
                "stress_vs_model": None, "cases_seen": len(cases), "cases_in_session": len(session.cases)}
-    if model_delta_e is not None and len(cases) >= 2:
-        summary["stress_vs_model"] = _f(stress([c["model_delta_e00"] for c in cases],
-                                               [c["mean_delta_v"] for c in cases]))
+    colour_cases = [c for c in cases if c["attribute"] == "colour"]
+    if model_delta_e is not None and len(colour_cases) >= 2:
+        summary["stress_vs_model"] = _f(stress([c["model_delta_e00"] for c in colour_cases],
+                                               [c["mean_delta_v"] for c in colour_cases]))
+    summary["texture"] = {}
+    for attr, metric in TEXTURE_METRIC.items():
+        mine = [c for c in cases if c["attribute"] == attr]
+        if not mine:
+            continue
+        entry = {"cases": len(mine), "metric": metric, "spearman_rho": None}
+        pairs = [(c["model_texture"][metric], c["mean_delta_v"]) for c in mine if c["model_texture"]]
+        if len(pairs) >= 3 and len({p[0] for p in pairs}) > 1 and len({p[1] for p in pairs}) > 1:
+            from scipy.stats import spearmanr
+
+            entry["spearman_rho"] = _f(spearmanr([p[0] for p in pairs], [p[1] for p in pairs])[0])
+        summary["texture"][attr] = entry
     return {"session": session.model.name, "session_hash": session.hash, "response": rtype,
             "responses": len(rows), "observers": sorted({r["observer"] for r in rows}),
             "cases": cases, "intra_observer_stress": {k: _f(v) for k, v in intra.items()},
@@ -129,7 +197,9 @@ def _make_plots(stats: dict) -> list[tuple[str, str]]:
     cases = stats["cases"]
     from lbscene.engine.files.textsafe import printable
 
-    labels = [printable(f"{c['lighting']}/{c['geometry']}/{c['sample']}", newlines=False) for c in cases]
+    labels = [printable(f"{c['lighting']}/{c['geometry']}/{c['sample']}"
+                        + ("" if c.get("attribute", "colour") == "colour" else f"/{c['attribute']}"),
+                        newlines=False) for c in cases]
     fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(cases) + 2), 3.6))
     ax.bar(range(len(cases)), [c["mean_score"] for c in cases], yerr=[c["sd_score"] for c in cases],
            color="#7a9cc6", capsize=2)
@@ -140,8 +210,9 @@ def _make_plots(stats: dict) -> list[tuple[str, str]]:
     out.append(("Mean score per case", _png(fig)))
     plt.close(fig)
     if stats["summary"]["stress_vs_model"] is not None:
-        e = np.array([c["model_delta_e00"] for c in cases])
-        v = np.array([c["mean_delta_v"] for c in cases])
+        colour = [c for c in cases if c.get("attribute", "colour") == "colour"]
+        e = np.array([c["model_delta_e00"] for c in colour])
+        v = np.array([c["mean_delta_v"] for c in colour])
         f1 = float(e @ e) / float(e @ v) if float(e @ v) > 0 else 1.0
         fig, ax = plt.subplots(figsize=(4.6, 4.2))
         ax.scatter(e, v, s=18)
@@ -153,6 +224,17 @@ def _make_plots(stats: dict) -> list[tuple[str, str]]:
         ax.set_title(f"STRESS = {stats['summary']['stress_vs_model']:.1f}")
         ax.legend(fontsize=8)
         out.append(("Visual difference against the model's ΔE00", _png(fig)))
+        plt.close(fig)
+    for attr, metric in TEXTURE_METRIC.items():
+        mine = [c for c in cases if c.get("attribute") == attr and c.get("model_texture")]
+        if len(mine) < 2:
+            continue
+        fig, ax = plt.subplots(figsize=(4.6, 4.2))
+        ax.scatter([c["model_texture"][metric] for c in mine], [c["mean_delta_v"] for c in mine], s=18)
+        ax.set_xlabel(f"model {metric.replace('_', ' ')}")
+        ax.set_ylabel("visual difference ΔV (panel mean)")
+        ax.set_title(f"{attr}: panel against the model's texture")
+        out.append((f"{attr.capitalize()}: visual difference beside the model's {metric}", _png(fig)))
         plt.close(fig)
     obs = stats["observers"]
     fig, ax = plt.subplots(figsize=(max(5, 0.4 * len(obs) + 2), 3.2))
@@ -183,11 +265,28 @@ def render_html(stats: dict, session) -> str:
     def num(v, fmt="{:.2f}"):
         return "—" if v is None else fmt.format(v)
 
+    def tex(c):
+        t = c.get("model_texture")
+        if not t:
+            return "<td>—</td><td>—</td><td>—</td>"
+        return (f"<td>{num(t['glints_per_cm2'], '{:.0f}')}</td><td>{num(t['glint_contrast'], '{:.2f}')}</td>"
+                f"<td>{num(t['grain_contrast_percent'], '{:.1f}')}</td>")
+
     rows = "".join(
-        f"<tr><td>{e(c['lighting'])}</td><td>{e(c['geometry'])}</td><td>{e(c['sample'])}</td><td>{c['n']}</td>"
+        f"<tr><td>{e(c['lighting'])}</td><td>{e(c['geometry'])}</td><td>{e(c['sample'])}</td>"
+        f"<td>{e(c.get('attribute', 'colour'))}</td><td>{c['n']}</td>"
         f"<td>{num(c['mean_score'])}</td><td>{num(c['sd_score'])}</td><td>{num(c['mean_delta_v'])}</td>"
-        f"<td>{num(c['model_delta_e00'])}</td><td>{num(c['median_response_time_ms'], '{:.0f}')}</td></tr>"
+        f"<td>{num(c['model_delta_e00'])}</td>{tex(c)}<td>{num(c['median_response_time_ms'], '{:.0f}')}</td></tr>"
         for c in stats["cases"])
+    tex_rows = "".join(
+        f"<tr><td>{e(a)}</td><td>{t['cases']}</td><td>{e(t['metric'])}</td><td>{num(t['spearman_rho'])}</td></tr>"
+        for a, t in s.get("texture", {}).items())
+    tex_table = ("<h2>Texture attributes</h2><p>Sparkle and graininess cases beside the model's metrics "
+                 "(lbscene.engine.coatings.visual): glints per cm² and one glint's luminance over the coating's "
+                 "mean (sparkle), the diffuse part's relative standard deviation per cell (graininess); "
+                 "Spearman's ρ between the panel's mean ΔV and the attribute's metric over its cases.</p>"
+                 "<table><tr><th>attribute</th><th>cases</th><th>model metric</th><th>Spearman ρ</th></tr>"
+                 f"{tex_rows}</table>") if tex_rows else ""
     obs_rows = "".join(
         f"<tr><td>{e(o)}</td><td>{num(stats['intra_observer_stress'].get(o), '{:.1f}')}</td>"
         f"<td>{num(stats['inter_observer_stress'].get(o), '{:.1f}')}</td></tr>" for o in stats["observers"])
@@ -199,7 +298,7 @@ def render_html(stats: dict, session) -> str:
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>lbscene visual report: {e(stats['session'])}</title>
 <style>body{{font:14px/1.45 system-ui,sans-serif;margin:24px;max-width:1100px}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:nth-child(-n+3){{text-align:left}}
+td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:nth-child(-n+4){{text-align:left}}
 figure{{display:inline-block;margin:8px}}img{{max-width:100%}}</style></head><body>
 <h1>Visual test: {e(stats['session'])}</h1>
 <p>{stats['responses']} responses from {len(stats['observers'])} observers; {s['cases_seen']} of
@@ -210,9 +309,11 @@ figure{{display:inline-block;margin:8px}}img{{max-width:100%}}</style></head><bo
 <td>{num(s['stress_vs_model'], '{:.1f}')}</td></tr></table>
 <p>STRESS: 0 = agreement up to a scale factor, 100 = none (García et al., JOSA A 24, 2007).</p>
 {plots}
+{tex_table}
 <h2>Cases</h2>
-<table><tr><th>lighting</th><th>geometry</th><th>sample</th><th>n</th><th>mean score</th><th>sd</th><th>ΔV</th>
-<th>model ΔE00</th><th>median time (ms)</th></tr>{rows}</table>
+<table><tr><th>lighting</th><th>geometry</th><th>sample</th><th>attribute</th><th>n</th><th>mean score</th><th>sd</th>
+<th>ΔV</th><th>model ΔE00</th><th>model glints/cm²</th><th>model glint contrast</th><th>model grain %</th>
+<th>median time (ms)</th></tr>{rows}</table>
 <h2>Observers</h2>
 <table><tr><th>observer</th><th>intra-observer STRESS</th><th>inter-observer STRESS</th></tr>{obs_rows}</table>
 </body></html>

@@ -20,22 +20,28 @@ def register(app: typer.Typer) -> None:
         model_de: Optional[Path] = typer.Option(
             None, "--model-de", help="CSV lighting,geometry,sample,delta_e00: the model's ΔE00 per case "
                                      "(for STRESS against the model)."),
+        model_texture: Optional[Path] = typer.Option(
+            None, "--model-texture", help="CSV lighting,geometry,sample + texture metrics (the web export's "
+                                          "model-texture.csv): set beside the sparkle and graininess scores."),
         report: Optional[Path] = typer.Option(None, "--report", help="Write one self-contained HTML report."),
         json_out: Optional[Path] = typer.Option(None, "--json-out", help="Write the statistics as JSON."),
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
-        """Mean score per case, intra-/inter-observer STRESS and STRESS against the model's ΔE00."""
+        """Mean score per case, intra-/inter-observer STRESS and STRESS against the model's ΔE00; sparkle
+        and graininess cases beside the model's texture metrics."""
         from lbscene.engine.files.load import display_path
         from lbscene.engine.files.outputs import check_outputs, write_output
         from lbscene.engine.visual.protocol import load_session, read_results
-        from lbscene.engine.visual.report import analyse, read_model_delta_e, render_html
+        from lbscene.engine.visual.report import analyse, read_model_delta_e, read_model_texture, render_html
 
-        check_outputs([(report, "--report"), (json_out, "--json-out")], inputs=[*results, session, model_de])
+        check_outputs([(report, "--report"), (json_out, "--json-out")],
+                      inputs=[*results, session, model_de, model_texture])
         ses = load_session(session, tuple(allow_path or ()))
         rows = read_results(results, ses)
         model = read_model_delta_e(model_de, ses) if model_de is not None else None
-        stats = analyse(rows, ses, model)
+        texture = read_model_texture(model_texture, ses) if model_texture is not None else None
+        stats = analyse(rows, ses, model, texture)
         if report is not None:
             write_output(report, render_html(stats, ses), option="--report")
         if json_out is not None:
@@ -51,11 +57,20 @@ def register(app: typer.Typer) -> None:
 
         t = Table(title=f"session {stats['session']}: {stats['responses']} responses, "
                         f"{len(stats['observers'])} observers")
-        for col in ("lighting", "geometry", "sample", "n", "mean score", "sd", "ΔV", "model ΔE00"):
-            t.add_column(col, justify="left" if col in ("lighting", "geometry", "sample") else "right")
+        texture_cases = any(c["attribute"] != "colour" for c in stats["cases"])
+        cols = ["lighting", "geometry", "sample"] + (["attribute"] if texture_cases else []) + [
+            "n", "mean score", "sd", "ΔV", "model ΔE00"] + (["model texture"] if texture_cases else [])
+        for col in cols:
+            t.add_column(col, justify="left" if col in ("lighting", "geometry", "sample", "attribute",
+                                                        "model texture") else "right")
         for c in stats["cases"]:
-            t.add_row(c["lighting"], c["geometry"], c["sample"], str(c["n"]), num(c["mean_score"]),
-                      num(c["sd_score"]), num(c["mean_delta_v"]), num(c.get("model_delta_e00")))
+            row = [c["lighting"], c["geometry"], c["sample"]] + ([c["attribute"]] if texture_cases else []) + [
+                str(c["n"]), num(c["mean_score"]), num(c["sd_score"]), num(c["mean_delta_v"]), num(c.get("model_delta_e00"))]
+            if texture_cases:
+                m = c.get("model_texture")
+                row.append("" if not m else f"{m['glints_per_cm2']:.0f} glints/cm², contrast "
+                                            f"{m['glint_contrast']:.2f}, grain {m['grain_contrast_percent']:.1f} %")
+            t.add_row(*row)
         out_console().print(t)
         s = stats["summary"]
         intra = s["intra_observer_stress_mean"]

@@ -7,7 +7,9 @@
 // Out of gamut (a linear channel outside 0..1): GAMUT_MAPPING 1 (default) moves the colour
 // toward the display's grey of the same luminance until it fits (lbscene.engine.colour.
 // display_model's 'chroma' mapping), 0 clips each channel; the largest excess is returned
-// in .a so the runtime can report it.
+// in .a so the runtime can report it.  HIGHLIGHT_ROLLOFF 1 (on for samples with flakes): before
+// that, luminance above u_highlight_knee of the white is compressed so that glints up to
+// u_highlight_max × white keep distinct levels (highlight_rolloff).
 precision highp float;
 precision highp int;
 precision highp sampler2D;
@@ -18,6 +20,9 @@ precision highp sampler2D;
 #ifndef GAMUT_MAPPING
 #define GAMUT_MAPPING 1             // 0 clip, 1 chroma (constant luminance toward the neutral)
 #endif
+#ifndef HIGHLIGHT_ROLLOFF
+#define HIGHLIGHT_ROLLOFF 0         // 1: luminance above u_highlight_knee × white rolled off (glints)
+#endif
 
 uniform float u_exposure;
 uniform mat3 u_adaptation;          // XYZ under the lighting → corresponding XYZ under the display white
@@ -27,6 +32,21 @@ uniform vec4 u_tone_params[3];      // GOG per channel: (gain, offset, gamma, 0)
 uniform sampler2D u_tone_lut;       // (size × 1): drive for linear value i/(size − 1), per channel
 uniform int u_tone_lut_size;
 uniform float u_inv_y_span;         // 1 / (Y_white − Y_black) of the display, cd/m²
+uniform float u_highlight_knee;     // HIGHLIGHT_ROLLOFF: start of the roll-off (fraction of white)
+uniform float u_highlight_max;      // HIGHLIGHT_ROLLOFF: luminance (× white) brought to white
+
+// Relative luminance y (1 = display white) → y' ≤ 1: identity up to the knee k, then extended
+// Reinhard on the excess x = (y − k)/(1 − k) with white point w = (y_max − k)/(1 − k):
+// x' = x (1 + x/w²)/(1 + x), so y_max maps to white and brighter glints stay brighter below it.
+float highlight_rolloff(float y) {
+    float k = u_highlight_knee;
+    if (y <= k) {
+        return y;
+    }
+    float x = (y - k) / (1.0 - k);
+    float w = (u_highlight_max - k) / (1.0 - k);
+    return k + (1.0 - k) * min(x * (1.0 + x / (w * w)) / (1.0 + x), 1.0);
+}
 
 float srgb_encode(float x) {
     return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
@@ -49,6 +69,15 @@ float lut_inverse(float l, int channel) {
 // Absolute XYZ (Y in cd·m⁻²) → (drive values 0..1, out-of-gamut excess ≥ 0).
 vec4 display_drive(vec3 xyz_abs) {
     vec3 xyz = (u_adaptation * xyz_abs) * u_exposure;
+#if HIGHLIGHT_ROLLOFF == 1
+    {
+        // a glint above the display's white: its luminance rolled off, its chromaticity kept
+        float y = (xyz.y - u_xyz_offset.y) * u_inv_y_span;
+        if (y > u_highlight_knee) {
+            xyz = u_xyz_offset + (xyz - u_xyz_offset) * (highlight_rolloff(y) / y);
+        }
+    }
+#endif
     vec3 lin = u_xyz_to_rgb * (xyz - u_xyz_offset);
     float excess = max(max(max(-lin.r, -lin.g), -lin.b), max(max(lin.r, lin.g), lin.b) - 1.0);
 #if GAMUT_MAPPING == 1

@@ -6,12 +6,20 @@
 // bulbs as area lights) by linearly transformed cosines (Heitz et al. 2016), with the
 // project's own fitted tables (runtimes/ltc.py) and Schlick's Fresnel.
 // SHADE_TO_DISPLAY: as in booth.frag (0: four RGBA32F targets; 1: 8-bit display colour).
+// COATING 1 (a sample with effect_coating): the radiance the vertex stage computed from the flop
+// BRDF fitted to the measured geometries with every lamp integrated over its extent
+// (lib_coating.glsl, surface.vert), and, with flakes, sparkle (Poisson counts of glinting flakes
+// per sample-space cell, from a stable hash) and graininess (the diffuse part modulated per cell):
+// see docs "Effect coatings" and lbscene.runtimes.coating.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
 
 #ifndef SHADE_TO_DISPLAY
 #define SHADE_TO_DISPLAY 0
+#endif
+#ifndef COATING
+#define COATING 0
 #endif
 
 in vec3 v_position_mm;
@@ -35,6 +43,19 @@ uniform int u_ltc_size;
 uniform float u_roughness;
 uniform float u_specular_weight;
 uniform float u_f0;
+#if COATING
+in vec4 v_glint0;                        // per emitter (surface.vert, lib_coating.glsl): λ per view
+in vec4 v_glint1;                        // cell, one glint's radiance factor, half-vector slope
+in vec4 v_glint2;
+in vec4 v_glint3;
+in float v_diffuse_share;                // the diffuse base's share of the smooth radiance
+uniform vec2 u_sample_size_mm;
+uniform int u_flakes;                    // 0: flop only
+uniform float u_flake_cell_mm;
+uniform float u_grain_sigma;             // relative std of the diffuse part per cell
+uniform float u_glint_bin;               // slope-space bin of the half vector
+uniform vec4 u_glint_spectrum[4];        // ρ_f × the emitters' mean band intensity
+#endif
 
 #if SHADE_TO_DISPLAY
 layout(location = 0) out vec4 o_rgba;
@@ -223,6 +244,92 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
     l3 += lobe * s3;
 }
 
+#if COATING
+// ---------------------------------------------------------------- effect coating
+
+// Integer hash (PCG, O'Neill 2014 / Jarzynski & Olano 2020) → uniform in (0, 1).
+uint pcg_hash(uint v) {
+    uint state = v * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+float hash_unit(ivec4 k) {
+    uint h = pcg_hash(uint(k.x) ^ pcg_hash(uint(k.y) ^ pcg_hash(uint(k.z) ^ pcg_hash(uint(k.w)))));
+    return (float(h >> 8u) + 0.5) * (1.0 / 16777216.0);
+}
+
+// Poisson(λ) by the inverse CDF of one uniform: exact below λ = 16, a rounded normal above.
+float poisson_inverse(float u, float lam) {
+    if (lam > 16.0) {
+        // normal quantile (Tukey's lambda approximation, |error| < 0.01σ)
+        float z = 4.91 * (pow(u, 0.14) - pow(1.0 - u, 0.14));
+        return max(0.0, floor(lam + sqrt(lam) * z + 0.5));
+    }
+    float p = exp(-lam);
+    float c = p;
+    float k = 0.0;
+    for (int i = 0; i < 48; i++) {
+        if (u <= c) {
+            break;
+        }
+        k += 1.0;
+        p *= lam / k;
+        c += p;
+    }
+    return k;
+}
+
+// The glints of one emitter in the pixel's cell: g = (λ per view cell, one glint's radiance factor
+// per view cell, half-vector slope); `a` = (cell / view cell)² rescales both to the pixel's cell.
+float glints(vec4 g, ivec3 cell, int em, float a) {
+    if (g.x * a < 1e-7) {
+        return 0.0;
+    }
+    ivec2 bin = ivec2(floor(g.zw / u_glint_bin));
+    float lam = g.x * a;
+    float k = poisson_inverse(hash_unit(ivec4(cell.x, cell.y, (bin.x * 7919 + bin.y) * 8 + cell.z, em)), lam);
+    return g.y / a * (k - lam);
+}
+
+// The coating at this pixel: the smooth part from the vertices (flop BRDF with the lamps
+// integrated over their extent, lib_coating.glsl), then per flake cell of the sample the
+// graininess of the diffuse part and the glints (Poisson counts from a stable hash of the cell,
+// the half vector's slope bin and the emitter).
+void coating(out vec4 l0, out vec4 l1, out vec4 l2, out vec4 l3) {
+    l0 = v_irradiance0;
+    l1 = v_irradiance1;
+    l2 = v_irradiance2;
+    l3 = v_irradiance3;
+    if (u_flakes == 0) {
+        return;
+    }
+    vec2 s_mm = v_uv * u_sample_size_mm;
+    // the view's cell, or a power-of-two multiple of it where a pixel covers more of the sample
+    // (a smaller viewport): each pixel then draws the flakes of its whole footprint
+    vec2 sx = dFdx(s_mm), sy = dFdy(s_mm);
+    float footprint = sqrt(abs(sx.x * sy.y - sx.y * sy.x));
+    float level = max(0.0, ceil(log2(max(footprint, 1e-9) / u_flake_cell_mm) - 0.5));
+    float cell_mm = u_flake_cell_mm * exp2(level);
+    ivec3 cell = ivec3(ivec2(floor(s_mm / cell_mm)), int(level));
+    float a = exp2(2.0 * level);
+    float grain = 1.0;
+    if (u_grain_sigma > 0.0) {
+        float ua = hash_unit(ivec4(cell.xy, 104729 + cell.z, 1));
+        float ub = hash_unit(ivec4(cell.xy, 104729 + cell.z, 2));
+        // σ per cell falls as 1/side (independent flakes): u_grain_sigma is the view's cell's
+        grain = max(0.0, 1.0 + u_grain_sigma / exp2(level) * sqrt(-2.0 * log(ua)) * cos(6.283185307179586 * ub));
+    }
+    float g = glints(v_glint0, cell, 0, a) + glints(v_glint1, cell, 1, a) + glints(v_glint2, cell, 2, a)
+              + glints(v_glint3, cell, 3, a);
+    float k = 1.0 + (grain - 1.0) * v_diffuse_share;
+    l0 = max(l0 * k + u_glint_spectrum[0] * g, 0.0);
+    l1 = max(l1 * k + u_glint_spectrum[1] * g, 0.0);
+    l2 = max(l2 * k + u_glint_spectrum[2] * g, 0.0);
+    l3 = max(l3 * k + u_glint_spectrum[3] * g, 0.0);
+}
+#endif
+
 void main() {
     vec3 P = v_position_mm;
     vec3 N = normalize(v_normal);
@@ -231,12 +338,17 @@ void main() {
         N = -N;
     }
 
+#if COATING
+    vec4 l0, l1, l2, l3;
+    coating(l0, l1, l2, l3);
+#else
     vec4 r0, r1, r2, r3;
     reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
     vec4 l0 = r0 * v_irradiance0 * INV_PI;
     vec4 l1 = r1 * v_irradiance1 * INV_PI;
     vec4 l2 = r2 * v_irradiance2 * INV_PI;
     vec4 l3 = r3 * v_irradiance3 * INV_PI;
+#endif
     if (u_specular_weight > 0.0 && u_emitter_count > 0) {
         specular(P, N, V, l0, l1, l2, l3);
     }

@@ -8,12 +8,19 @@
 // interpolated instead.  Radiance, and so XYZ, is linear in the irradiance and the material
 // is constant over a triangle, so interpolating XYZ gives the XYZ of the interpolated bands:
 // the same image for 3 varyings instead of 16.
+//
+// COATING 1 (the sample draw of an effect coating; vertex_include: lib_coating.glsl): the
+// v_irradiance blocks carry the coating's smooth radiance (W·sr⁻¹·m⁻²·nm⁻¹) instead, with the
+// glint parameters per emitter and the diffuse share for sample.frag.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
 
 #ifndef VERTEX_XYZ
 #define VERTEX_XYZ 0
+#endif
+#ifndef COATING
+#define COATING 0
 #endif
 
 in vec3 a_position_mm;
@@ -41,6 +48,14 @@ out vec4 v_irradiance1;
 out vec4 v_irradiance2;
 out vec4 v_irradiance3;
 #endif
+#if COATING
+uniform vec3 u_sample_u_axis;    // the sample's u axis, placed for the view (before u_model)
+out vec4 v_glint0;
+out vec4 v_glint1;
+out vec4 v_glint2;
+out vec4 v_glint3;
+out float v_diffuse_share;
+#endif
 
 void main() {
     vec4 p = u_model * vec4(a_position_mm, 1.0);
@@ -60,6 +75,14 @@ void main() {
     v_irradiance1 = a_irradiance1;
     v_irradiance2 = a_irradiance2;
     v_irradiance3 = a_irradiance3;
+#if COATING
+    vec3 n = normalize(v_normal);
+    vec3 t1 = mat3(u_model) * u_sample_u_axis;
+    t1 = normalize(t1 - n * dot(t1, n));
+    coating_vertex(p.xyz, n, t1, a_irradiance0, a_irradiance1, a_irradiance2, a_irradiance3,
+                   v_irradiance0, v_irradiance1, v_irradiance2, v_irradiance3, v_diffuse_share,
+                   v_glint0, v_glint1, v_glint2, v_glint3);
+#endif
 #endif
     gl_Position = u_view_proj * p;
 }

@@ -25,6 +25,8 @@ works from ``file://``)::
     manifest.json           what export-web wrote: format, lbscene version, files and their sha256
                             (an earlier export is replaced only while every file in it is one of
                             these, unchanged: :mod:`lbscene.engine.files.outputs`)
+    model-texture.csv       with a session and effect coatings with flakes: the model's texture
+                            metrics per case (:mod:`lbscene.engine.coatings.visual`)
 
 Blobs are content-addressed (sha256), so data shared by views, samples or displays
 (booth meshes under fixed lamps, the LTC tables) are stored once.
@@ -65,6 +67,8 @@ __all__ = [
     "is_web_export",
     "model_delta_e_csv",
     "MODEL_DE_FILE",
+    "MODEL_TEXTURE_FILE",
+    "model_texture_csv",
 ]
 
 EXPORT_FORMAT = "lbscene.web_export"
@@ -74,6 +78,7 @@ ASSET_FILES = ("index.html", "viewer.css", "lbscene-executor.js", "viewer.js")
 DATA_FILE = "lbscene-data.js"
 #: Written with a session: the model's ΔE00 per case, for ``visual-report --model-de``.
 MODEL_DE_FILE = "model-delta-e00.csv"
+MODEL_TEXTURE_FILE = "model-texture.csv"
 DATA_GLOBAL = "LBSCENE_DATA"
 
 
@@ -155,6 +160,39 @@ def _model_case(lighting, view_spec, sample, display, vi, white_fraction) -> dic
             "display": display.name, "aspecular_deg": asp, "delta_e00": round(de, 4)}
 
 
+def _model_texture(lighting, view_spec, sample, builder, vi, camera) -> dict | None:
+    """The model's texture metrics of a case (:mod:`lbscene.engine.coatings.visual`), for a sample
+    with flakes (None otherwise)."""
+    app = builder.coating_appearance()
+    if app is None or app.flakes is None:
+        return None
+    from lbscene.engine.coatings.visual import case_texture_metrics
+
+    v = vi.values
+    eye = np.asarray(camera.position_mm or view_spec["camera"]["position_mm"], float)
+    m = case_texture_metrics(app, vi.textures["emitters"], int(v["view.emitter_count"]), vi.sample_centre_mm,
+                             vi.sample_normal, eye, v["sample.u_axis"],
+                             np.asarray(v["view.xyz_weights"], float).reshape(16, 3),
+                             float(v["sample.flake_cell_mm"]), float(v["sample.grain_sigma"]),
+                             float(vi.info["coating"]["visible_share"]))
+    return dict({"lighting": lighting, "geometry": view_spec["name"], "sample": sample.name}, **m)
+
+
+def model_texture_csv(manifest: dict) -> str:
+    """``lighting,geometry,sample`` and the texture metrics (``visual-report --model-texture``)."""
+    import csv
+    import io
+
+    from lbscene.engine.coatings.visual import TEXTURE_COLUMNS
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["lighting", "geometry", "sample", *TEXTURE_COLUMNS])
+    for r in manifest.get("model_texture", []):
+        w.writerow([r["lighting"], r["geometry"], r["sample"], *(r[c] for c in TEXTURE_COLUMNS)])
+    return buf.getvalue()
+
+
 def model_delta_e_csv(manifest: dict) -> str:
     """``lighting,geometry,sample,delta_e00,display,aspecular_deg`` for ``visual-report
     --model-de``: the cases on the export's first display (the configuration's)."""
@@ -193,6 +231,7 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
     camera = inp.camera or CameraSpec()
     lightings = []
     model_de: list[dict] = []
+    model_tex: list[dict] = []
     static_refs: dict[str, dict] = {}
     for lname, (diffuse, bake) in inp.lightings.items():
         graph = build_render_graph(ir, lname)
@@ -223,6 +262,10 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
                     if inp.session is not None:
                         model_de.append(_model_case(lname, vs, inp.samples[si], inp.displays[di], vi,
                                                     inp.white_fraction))
+                        if di == 0:
+                            tex = _model_texture(lname, vs, inp.samples[si], b, vi, camera)
+                            if tex is not None:
+                                model_tex.append(tex)
                     entry["displays"].append({"values": vals,
                                               "exposure": float(vi.info["exposure"]),
                                               "sample_illuminance_lx": float(vi.info["sample_illuminance_lx"])})
@@ -261,6 +304,7 @@ def build_export(inp: WebExportInputs, progress: Callable[[str], None] | None = 
         "session": inp.session,
     }
     manifest["model_delta_e00"] = model_de
+    manifest["model_texture"] = model_tex
     manifest["blob_bytes"] = store.nbytes
     manifest["blobs"] = store.to_json()
     return manifest
@@ -301,6 +345,8 @@ def write_export(manifest: dict, out_dir: Path, *, option: str | None = "--out")
         text = json.dumps(manifest, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
         if manifest.get("model_delta_e00"):
             files[MODEL_DE_FILE] = write_new_file(tmp / MODEL_DE_FILE, model_delta_e_csv(manifest))
+        if manifest.get("model_texture"):
+            files[MODEL_TEXTURE_FILE] = write_new_file(tmp / MODEL_TEXTURE_FILE, model_texture_csv(manifest))
         files[DATA_FILE] = write_new_file(
             tmp / DATA_FILE, f"// lbscene web export: render graphs, shaders and data (generated; see index.html)\n"
                              f"window.{DATA_GLOBAL} = {text};\n")
@@ -314,5 +360,6 @@ def write_export(manifest: dict, out_dir: Path, *, option: str | None = "--out")
         if isinstance(exc, OSError) and exc.errno in NO_SPACE_ERRNOS:
             raise no_space_error(out_dir, option, exc) from None
         raise
-    extra = (MODEL_DE_FILE,) if manifest.get("model_delta_e00") else ()
+    extra = ((MODEL_DE_FILE,) if manifest.get("model_delta_e00") else ()) + (
+        (MODEL_TEXTURE_FILE,) if manifest.get("model_texture") else ())
     return [out_dir / n for n in ASSET_FILES + (DATA_FILE,) + extra]

@@ -182,7 +182,7 @@ def test_a_file_put_under_an_entrys_name_is_not_replaced(cache):
 _FIFO_SCRIPT = """
 import os, sys
 import numpy as np
-from lbscene.engine import disk_cache
+from lbscene.engine.files import disk_cache
 a = np.arange(3.0)
 out = disk_cache.cached_array("ff", (a,), (), lambda: np.ones((3, 2)))
 print(out.sum())

@@ -635,7 +635,7 @@ def test_a_rebuild_keeps_the_bakes_inside_the_build(minimal_booth, tmp_path, run
 
 def test_a_user_file_that_appears_in_the_build_folder_during_the_build_is_kept(minimal_booth, tmp_path,
                                                                                run_cli, monkeypatch):
-    from lbscene.engine import build as build_mod
+    from lbscene.engine.scene import build as build_mod
 
     out = tmp_path / "b"
     assert run_cli("build", minimal_booth, "--out", out)[0] == 0
@@ -655,7 +655,7 @@ def test_a_user_file_that_appears_in_the_build_folder_during_the_build_is_kept(m
 
 
 def test_a_folder_that_appears_during_the_build_is_kept(minimal_booth, tmp_path, run_cli, monkeypatch):
-    from lbscene.engine import build as build_mod
+    from lbscene.engine.scene import build as build_mod
 
     out = tmp_path / "b"
 
@@ -699,7 +699,7 @@ def test_a_history_lbscene_wrote_before_the_ledger_is_still_appended_to(meas_set
 def rename_kind(request, monkeypatch):
     """Run a test with ``renameat2`` and as on a system without it (link + unlink, checked replace)."""
     if request.param == "no_renameat2":
-        from lbscene.engine import outputs
+        from lbscene.engine.files import outputs
 
         monkeypatch.setattr(outputs, "_renameat2", lambda *a: False)
     return request.param
@@ -726,7 +726,7 @@ def test_write_time_checks_with_and_without_renameat2(tmp_path, rename_kind):
 
 
 def test_folder_swaps_with_and_without_renameat2(minimal_booth, tmp_path, run_cli, monkeypatch, rename_kind):
-    from lbscene.engine import build as build_mod
+    from lbscene.engine.scene import build as build_mod
 
     out = tmp_path / "b"
     for level in (1000, 1200):                                # new, then replacing its own

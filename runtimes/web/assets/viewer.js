@@ -244,7 +244,9 @@
     state.tilt = 0;
     syncControls();
     render();
-    $('trial').textContent = `${T.observer}: case ${T.i + 1} of ${T.trials.length} (repeat ${t.repeat})`;
+    const what = { colour: 'the colour', sparkle: 'the sparkle (glints under the lamp)',
+      graininess: 'the graininess (light/dark pattern)' }[t.attribute || 'colour'];
+    $('trial').textContent = `${T.observer}: case ${T.i + 1} of ${T.trials.length} (repeat ${t.repeat}): judge ${what}`;
     T.shownAt = performance.now();
   }
   function answer(score) {
@@ -254,7 +256,7 @@
     T.i += 1;
     present();
   }
-  const CSV_COLUMNS = ['session', 'observer', 'repeat', 'order', 'lighting', 'geometry', 'sample', 'display', 'score', 'response_time_ms'];
+  const CSV_COLUMNS = ['session', 'observer', 'repeat', 'order', 'lighting', 'geometry', 'sample', 'display', 'score', 'response_time_ms', 'attribute'];
   function resultsCsv(rows) {
     const q = (v) => { const s = String(v); return /[",\n]/.test(s) ? `"${s.replace(/"/g, '""')}"` : s; };
     return CSV_COLUMNS.join(',') + '\n' + rows.map((r) => CSV_COLUMNS.map((c) => q(c === 'session' ? D.session.name : r[c])).join(',')).join('\n') + '\n';
