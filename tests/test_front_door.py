@@ -80,8 +80,15 @@ def _walkthrough_copy(root: Path, odd: bool) -> Path:
 
 
 @pytest.fixture(scope="module", params=["plain", "odd"])
-def walk(request, tmp_path_factory):
+def walk_both(request, tmp_path_factory):
+    """The walkthrough as shipped and under hostile names (the README's command runs on both)."""
     return _walkthrough_copy(tmp_path_factory.mktemp("front"), request.param == "odd")
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    """The matrix runs on the hostile copy: everything the plain one meets, and more."""
+    return _walkthrough_copy(tmp_path_factory.mktemp("front-odd"), True)
 
 
 # --------------------------------------------------------------------------- as installed
@@ -94,8 +101,9 @@ def _lb(*args, cwd: Path, env_extra: dict | None = None) -> subprocess.Completed
                           capture_output=True, text=True, encoding="utf-8", errors="replace", timeout=600)
 
 
-def test_compare_report_with_the_default_diagnosis_as_installed(walk, tmp_path):
+def test_compare_report_with_the_default_diagnosis_as_installed(walk_both, tmp_path):
     """The README walkthrough's first command: ``compare --report`` with its defaults."""
+    walk = walk_both
     rep, js = tmp_path / "report.html", tmp_path / "compare.json"
     r = _lb("compare", walk, "--report", rep, "--json-out", js, cwd=tmp_path)
     _assert_clean(r.returncode, r.stdout, r.stderr)

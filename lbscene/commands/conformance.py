@@ -24,15 +24,20 @@ def _fmt(x, nd=1) -> str:
 
 
 def print_text(res, console) -> None:
-    """The result as rich tables; every user-supplied text escaped (``rich.markup.escape``)."""
-    from rich.markup import escape
+    """The result as rich tables on lbscene's literal console (user text is never parsed as
+    markup; control characters show as escapes); styles come from :func:`styled` parts."""
     from rich.table import Table
+
+    from .console import styled
+
+    def escape(text) -> str:          # the console is literal: text goes through as written
+        return str(text)
 
     from lbscene.engine.conformance.standards import STANDARD_TITLES
 
     a = res.area
-    console.print(f"[bold]{escape(res.booth_name)}[/bold]  {escape(res.booth_file)}  effects: "
-                  f"{escape(', '.join(res.effects) or 'none')}")
+    console.print(styled((res.booth_name, "bold"), f"  {res.booth_file}  effects: "
+                         f"{', '.join(res.effects) or 'none'}"))
     console.print(f"viewing area: {escape(a.source)} {a.size_mm[0]:g} × {a.size_mm[1]:g} mm at z = "
                   f"{a.centre_mm[2]:g} mm ({res.grid_points[0]} × {res.grid_points[1]} points)"
                   + (f"; measurements {escape(res.measurements)} (lighting {escape(res.measured_lighting)})"
@@ -49,7 +54,7 @@ def print_text(res, console) -> None:
                   _fmt(c.xy if c else None, 4), _fmt(c.cct_K if c else None, 0), _fmt(c.duv if c else None, 4),
                   _fmt(c.cri_ra if c else None), _fmt(c.cie2017_rf if c else None),
                   f"{_fmt(c.tm30_rf if c else None)} / {_fmt(c.tm30_rg if c else None)}",
-                  f"[{_STYLE[lc.verdict]}]{lc.verdict.replace('_', ' ')}[/]")
+                  styled((lc.verdict.replace('_', ' '), _STYLE[lc.verdict])))
     console.print(t)
     for lc in res.lightings:
         if lc.measured is not None:
@@ -68,7 +73,7 @@ def print_text(res, console) -> None:
         for ch in lc.checks:
             fig = "—" if ch.value is None else f"{_fmt(ch.value, 3)} {ch.unit}".strip()
             ct.add_row(escape(ch.title), ch.source, escape(fig), escape(ch.requirement),
-                       f"[{_STYLE[ch.verdict]}]{ch.verdict.replace('_', ' ')}[/]")
+                       styled((ch.verdict.replace('_', ' '), _STYLE[ch.verdict])))
         console.print(ct)
         seen = set()
         for ch in lc.checks:
