@@ -33,12 +33,10 @@ def _f(x):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else round(float(x), 4)
 
 
-def read_model_delta_e(path: Path, session) -> dict:
-    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed.
-
-    Read bounded (:data:`~lbscene.engine.visual.protocol.MAX_RESULTS_BYTES`); a ΔE00 that is not a
-    finite number ≥ 0 is a located ``LB710``.
-    """
+def _case_rows(path: Path, need: tuple[str, ...]):
+    """``(shown, [(line, {column: text}), …])`` of a model CSV: read bounded
+    (:data:`~lbscene.engine.visual.protocol.MAX_RESULTS_BYTES`), the ``need`` columns present and
+    every row as long as the header (``LB710`` located otherwise); blank rows skipped."""
     from lbscene.engine.files.load import display_path
     from lbscene.engine.files.yamlio import csv_rows, read_text_bounded
 
@@ -46,19 +44,30 @@ def read_model_delta_e(path: Path, session) -> dict:
 
     shown = display_path(Path(path))
     table = csv_rows(read_text_bounded(Path(path), shown, MAX_RESULTS_BYTES), shown)
-    need = ("lighting", "geometry", "sample", "delta_e00")
     header = [h.strip() for h in table[0][1]] if table else []
     if any(c not in header for c in need):
         raise LbsceneUserError.single("LB710", "missing column(s)", shown, 1, 1,
                                       expected=f"a CSV with columns {', '.join(need)}")
-    out = {}
+    rows = []
     for line, row in table[1:]:
         if not any(c.strip() for c in row):
             continue
         if len(row) != len(header):
             raise LbsceneUserError.single("LB710", f"row has {len(row)} fields, header has {len(header)}",
                                           shown, line, 1)
-        d = dict(zip(header, row))
+        rows.append((line, dict(zip(header, row))))
+    return shown, rows
+
+
+def read_model_delta_e(path: Path, session) -> dict:
+    """``lighting,geometry,sample,delta_e00`` rows → {case: ΔE00}; every case of the session needed.
+
+    Read bounded (:data:`~lbscene.engine.visual.protocol.MAX_RESULTS_BYTES`); a ΔE00 that is not a
+    finite number ≥ 0 is a located ``LB710``.
+    """
+    shown, rows = _case_rows(path, ("lighting", "geometry", "sample", "delta_e00"))
+    out = {}
+    for line, d in rows:
         try:
             de = float(d["delta_e00"])
         except ValueError:
@@ -79,27 +88,10 @@ def read_model_texture(path: Path, session) -> dict:
     :data:`lbscene.engine.coatings.visual.TEXTURE_COLUMNS`) → {(lighting, geometry, sample):
     metrics}; every texture case of the session needs a row."""
     from lbscene.engine.coatings.visual import TEXTURE_COLUMNS
-    from lbscene.engine.files.load import display_path
 
-    from lbscene.engine.files.yamlio import csv_rows, read_text_bounded
-
-    from .protocol import MAX_RESULTS_BYTES
-
-    shown = display_path(Path(path))
-    table = csv_rows(read_text_bounded(Path(path), shown, MAX_RESULTS_BYTES), shown)
-    need = ("lighting", "geometry", "sample") + TEXTURE_COLUMNS
-    header = [h.strip() for h in table[0][1]] if table else []
-    if any(c not in header for c in need):
-        raise LbsceneUserError.single("LB710", "missing column(s)", shown, 1, 1,
-                                      expected=f"a CSV with columns {', '.join(need)}")
+    shown, rows = _case_rows(path, ("lighting", "geometry", "sample") + TEXTURE_COLUMNS)
     out = {}
-    for line, row in table[1:]:
-        if not any(c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise LbsceneUserError.single("LB710", f"row has {len(row)} fields, header has {len(header)}",
-                                          shown, line, 1)
-        d = dict(zip(header, row))
+    for line, d in rows:
         try:
             values = {c: float(d[c]) for c in TEXTURE_COLUMNS}
         except ValueError:
