@@ -281,3 +281,24 @@ def test_bake_every_format(tmp_path, run_cli, fmt):
     if fmt == "json":
         (row,) = json.loads(out)["cross_check"]
         assert row["mode"] == "direct" and row["points"] == 55
+
+
+@pytest.mark.parametrize("fmt", ["text", "json"])
+def test_conformance_and_export_mitsuba_every_format(tmp_path, run_cli, fmt):
+    """``conformance`` (text, JSON, HTML report) and ``export-mitsuba`` on a shipped booth copied
+    under a hostile folder name."""
+    booth = tmp_path / ODD / "booth"
+    shutil.copytree(REPO / "booths" / "iso3664-p1-d50", booth)
+    rep = tmp_path / f"{ODD} conformance.html"
+    code, out, err = run_cli("conformance", booth, "--format", fmt, "--report", rep)
+    _assert_clean(code, out, err)
+    if fmt == "json":
+        res = json.loads(out)
+        assert res["lightings"]
+    assert "\x1b" not in out
+    _parse_html(rep.read_text(encoding="utf-8"))
+    pytest.importorskip("mitsuba")
+    xml = tmp_path / "scene.xml"
+    code, out, err = run_cli("export-mitsuba", booth, "--out", xml, "--format", fmt)
+    _assert_clean(code, out, err)
+    assert xml.read_text(encoding="utf-8").lstrip().startswith("<")
