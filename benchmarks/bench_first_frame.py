@@ -14,7 +14,7 @@ Every row runs in a fresh process (as ``lbscene render``, ``export-web`` or ``co
 
 First frame: compiling the booth and its render graph, the scene of its first view (the forward
 model at every vertex) and one realtime frame at 1024×768 (GL context, uploads, shader
-compilation) of a glossy red sample, seconds from the first line of work after the imports.
+compilation) of the example glossy red sample (read as ``lbscene render`` reads it), seconds from the first line of work after the imports.
 Web export: ``export-web`` inputs and manifest of ``examples/render/byko-gonio-blue-45as15.yaml``
 with all six geometries.  Compare: the first forward-model evaluation of the seed's 55-point A3
 grid in the BYK booth (what ``lbscene compare`` starts with).  Realtime ratio: the ``frame
@@ -39,6 +39,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 BOOTHS = ["byk-byko-spectra-effect", "xrite-spectralight-qc", "iso3664-p1-d50"]
+SAMPLE = REPO / "examples" / "render" / "sample-colorchecker-moderate-red-glossy.yaml"
 WEB_CONFIG = REPO / "examples" / "render" / "byko-gonio-blue-45as15.yaml"
 #: cache folders holding results rather than geometry (removed for the "geometry only" rows)
 RESULT_KINDS = ("vertex_irradiance", "point_irradiance_1nm")
@@ -49,19 +50,20 @@ def _first_frame(booth: str) -> dict:
     from lbscene.engine.scene.compile import compile_booth
     from lbscene.runtimes.colour_bridge import srgb_display
     from lbscene.runtimes.graph import build_render_graph
+    from lbscene.engine.files.load import load_document
+    from lbscene.engine.scene.sample import SampleSpec
     from lbscene.runtimes.render import Renderer
-
-    sys.path.insert(0, str(REPO / "benchmarks"))
-    from bench_render import _sample
+    from lbscene.schemas.sample import Sample
 
     t_import = time.perf_counter() - t0
     t0 = time.perf_counter()
+    sample = SampleSpec.from_document(load_document(SAMPLE, Sample))
     ir = compile_booth(REPO / "booths" / booth)
     lighting = next(iter(ir.lighting))
     graph = build_render_graph(ir, lighting)
     view = graph["views"][0]["name"]
     t_compile = time.perf_counter() - t0
-    r = Renderer(ir, graph, _sample(), srgb_display())
+    r = Renderer(ir, graph, sample, srgb_display())
     t1 = time.perf_counter()
     r.scene.view(view)
     t_scene = time.perf_counter() - t1
