@@ -1,20 +1,18 @@
 """Benchmark: the first frame of every shipped booth, the BYK web export and the first BYK compare.
 
-Run:  .venv/bin/python benchmarks/bench_first_frame.py [--skip-web] [--skip-compare] [--skip-ratio]
-      [--json]
+Run:  .venv/bin/python benchmarks/bench_first_frame.py [--baseline main] [--revision REV] [--booths A,B] [--skip-web]
+      [--skip-compare] [--skip-ratio] [--json]
 
 Every row runs in a fresh process (as ``lbscene render``, ``export-web`` or ``compare`` does), with
-``LBSCENE_CACHE_DIR`` set to a folder of its own:
-
-* ``empty``: a fresh, empty disk cache (a first run on a new machine);
-* ``warm``: the same folder again, as the previous row left it (a later run);
-* ``warm, geometry only``: the warm folder less the per-vertex results (``vertex_irradiance``,
-  ``point_irradiance_1nm``): the state a warm cache had before the vertices' light was cached,
-  the baseline of the warm rows, measured in the same run.
+``LBSCENE_CACHE_DIR`` set to a folder of its own: ``empty`` (a first run on a new machine), then
+``warm`` (the same folder again, a later run).  ``--baseline REV`` measures git revision ``REV``
+(run from its own tree through ``PYTHONPATH``) alongside the working tree, interleaved row by row,
+so that before and after see the same load.
 
 First frame: compiling the booth and its render graph, the scene of its first view (the forward
 model at every vertex) and one realtime frame at 1024×768 (GL context, uploads, shader
-compilation) of the example glossy red sample (read as ``lbscene render`` reads it), seconds from the first line of work after the imports.
+compilation) of the example glossy red sample (read as ``lbscene render`` reads it), seconds from
+the first line of work after importing lbscene (lazy imports such as colour-science's count).
 Web export: ``export-web`` inputs and manifest of ``examples/render/byko-gonio-blue-45as15.yaml``
 with all six geometries.  Compare: the first forward-model evaluation of the seed's 55-point A3
 grid in the BYK booth (what ``lbscene compare`` starts with).  Realtime ratio: the ``frame
@@ -30,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -41,8 +38,6 @@ REPO = Path(__file__).resolve().parents[1]
 BOOTHS = ["byk-byko-spectra-effect", "xrite-spectralight-qc", "iso3664-p1-d50"]
 SAMPLE = REPO / "examples" / "render" / "sample-colorchecker-moderate-red-glossy.yaml"
 WEB_CONFIG = REPO / "examples" / "render" / "byko-gonio-blue-45as15.yaml"
-#: cache folders holding results rather than geometry (removed for the "geometry only" rows)
-RESULT_KINDS = ("vertex_irradiance", "point_irradiance_1nm")
 
 
 def _first_frame(booth: str) -> dict:
@@ -102,8 +97,10 @@ def _child(what: str, arg: str) -> int:
     return 0
 
 
-def _run(what: str, arg: str, cache: Path) -> dict:
+def _run(what: str, arg: str, cache: Path, pythonpath: Path | None) -> dict:
     env = {**os.environ, "LBSCENE_CACHE_DIR": str(cache), "PYOPENGL_PLATFORM": "egl"}
+    if pythonpath is not None:
+        env["PYTHONPATH"] = str(pythonpath)
     p = subprocess.run([sys.executable, __file__, "--child", what, arg], env=env, capture_output=True,
                        text=True, cwd=REPO)
     for line in p.stdout.splitlines():
@@ -112,25 +109,38 @@ def _run(what: str, arg: str, cache: Path) -> dict:
     raise RuntimeError(f"{what} {arg} failed:\n{p.stderr[-3000:]}")
 
 
-def _three_states(what: str, arg: str, key: str, root: Path) -> dict:
-    """``empty``, ``warm`` and ``warm, geometry only`` (the warm baseline) of one measurement."""
-    cache = root / f"{what}-{arg}"
-    row = {"empty": _run(what, arg, cache)}
-    geo = root / f"{what}-{arg}-geometry"
-    shutil.copytree(cache, geo)
-    for kind in RESULT_KINDS:
-        shutil.rmtree(geo / kind, ignore_errors=True)
-    # interleaved: the baseline and the change see the same load
-    row["warm, geometry only"] = _run(what, arg, geo)
-    row["warm"] = _run(what, arg, cache)
-    row["key"] = key
+def _package_of(rev: str, root: Path) -> Path:
+    """A folder whose ``lbscene`` package is the tree of git revision ``rev`` (the layout of
+    ``[tool.setuptools] package-dir``), for ``PYTHONPATH``: it comes before the editable install."""
+    src = root / f"tree-{rev}"
+    src.mkdir()
+    tar = subprocess.run(["git", "archive", rev], cwd=REPO, capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(src)], input=tar, check=True)
+    pkg = root / f"pkg-{rev}" / "lbscene"
+    pkg.mkdir(parents=True)
+    for item in (src / "lbscene").iterdir():
+        (pkg / item.name).symlink_to(item)
+    for sub in ("schemas", "engine", "bakers", "runtimes", "booths", "displays"):
+        (pkg / sub).symlink_to(src / sub)
+    return pkg.parent
+
+
+def _states(what: str, arg: str, key: str, root: Path, trees: dict) -> dict:
+    """``empty`` and ``warm`` of one measurement for every tree, interleaved (the baseline and
+    the change see the same load)."""
+    row: dict = {"key": key}
+    for state in ("empty", "warm"):
+        for name, path in trees.items():
+            row[f"{name} {state}"] = _run(what, arg, root / f"cache-{name}-{what}-{arg}", path)
     return row
 
 
-def _realtime_ratio() -> dict:
+def _realtime_ratio(pythonpath: Path | None) -> dict:
+    env = {**os.environ, "PYOPENGL_PLATFORM": "egl"}
+    if pythonpath is not None:
+        env["PYTHONPATH"] = str(pythonpath)
     p = subprocess.run([sys.executable, str(REPO / "benchmarks" / "bench_render.py"), "--sizes", "1024x768",
-                        "--json"], capture_output=True, text=True, cwd=REPO,
-                       env={**os.environ, "PYOPENGL_PLATFORM": "egl"})
+                        "--json"], capture_output=True, text=True, cwd=REPO, env=env)
     info = json.loads(p.stdout)
     rows = info["sizes"]["1024x768"]
     return {"bare_ms": rows["baseline: bare 16 bands → XYZ → RGB8"]["median_ms"],
@@ -142,6 +152,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--booths", default=",".join(BOOTHS))
+    ap.add_argument("--baseline", default="", help="git revision measured alongside, e.g. main")
+    ap.add_argument("--revision", default="", help="git revision measured as 'after' (default: the working tree)")
     ap.add_argument("--skip-web", action="store_true")
     ap.add_argument("--skip-compare", action="store_true")
     ap.add_argument("--skip-ratio", action="store_true")
@@ -152,28 +164,31 @@ def main(argv=None) -> int:
     info: dict = {"cpus": os.cpu_count(), "loadavg_start": os.getloadavg()[0], "rows": {}}
     with tempfile.TemporaryDirectory(prefix="lbscene-bench-") as td:
         root = Path(td)
+        trees = {"before": _package_of(a.baseline, root)} if a.baseline else {}
+        trees["after"] = _package_of(a.revision, root) if a.revision else None
+        info["trees"] = {"before": a.baseline or None, "after": a.revision or "working tree"}
         for booth in a.booths.split(","):
-            info["rows"][f"first frame {booth}"] = _three_states("first_frame", booth, "first_frame_s", root)
+            info["rows"][f"first frame {booth}"] = _states("first_frame", booth, "first_frame_s", root, trees)
         if not a.skip_web:
-            info["rows"]["BYK export-web, 6 geometries"] = _three_states("web", "byk", "export_s", root)
+            info["rows"]["BYK export-web, 6 geometries"] = _states("web", "byk", "export_s", root, trees)
         if not a.skip_compare:
-            info["rows"]["first BYK compare (A3 grid)"] = _three_states("compare", "byk", "compare_s", root)
-    if not a.skip_ratio:
-        info["realtime"] = _realtime_ratio()
+            info["rows"]["first BYK compare (A3 grid)"] = _states("compare", "byk", "compare_s", root, trees)
+        if not a.skip_ratio:
+            info["realtime"] = {name: _realtime_ratio(path) for name, path in trees.items()}
     info["loadavg_end"] = os.getloadavg()[0]
     if a.json:
         print(json.dumps(info, indent=2))
         return 0
     print(f"cpus {info['cpus']}, load average {info['loadavg_start']:.2f} → {info['loadavg_end']:.2f}; "
-          "seconds, each a fresh process")
-    print(f"\n{'':42s} {'empty s':>9s} {'warm (geometry only) s':>23s} {'warm s':>8s}")
+          f"seconds, each a fresh process; before: {a.baseline or '-'}, after: {a.revision or 'the working tree'}")
+    cols = [f"{t} {s}" for s in ("empty", "warm") for t in trees]
+    print(f"\n{'':36s}" + "".join(f"{c + ' s':>15s}" for c in cols))
     for name, row in info["rows"].items():
         k = row["key"]
-        print(f"{name:42s} {row['empty'][k]:9.2f} {row['warm, geometry only'][k]:23.2f} {row['warm'][k]:8.2f}")
-    if "realtime" in info:
-        r = info["realtime"]
-        print(f"\nrealtime frame 1024x768: {r['realtime_ms']:.1f} ms, bare 16-band pass {r['bare_ms']:.1f} ms: "
-              f"{r['ratio']:.2f}× (goal ≤ 1.0×)")
+        print(f"{name:36s}" + "".join(f"{row[c][k]:15.2f}" for c in cols))
+    for name, r in info.get("realtime", {}).items():
+        print(f"\nrealtime frame 1024x768 ({name}): {r['realtime_ms']:.1f} ms, bare 16-band pass "
+              f"{r['bare_ms']:.1f} ms: {r['ratio']:.2f}× (goal ≤ 1.0×)")
     return 0
 
 
