@@ -1,7 +1,7 @@
 """Benchmark: the first frame of every shipped booth, the BYK web export and the first BYK compare.
 
-Run:  .venv/bin/python benchmarks/bench_first_frame.py [--baseline main] [--revision REV] [--booths A,B] [--skip-web]
-      [--skip-compare] [--skip-ratio] [--json]
+Run:  .venv/bin/python benchmarks/bench_first_frame.py [--baseline main] [--revision REV] [--booths A,B]
+      [--skip-web] [--skip-compare] [--skip-ratio] [--json]
 
 Every row runs in a fresh process (as ``lbscene render``, ``export-web`` or ``compare`` does), with
 ``LBSCENE_CACHE_DIR`` set to a folder of its own: ``empty`` (a first run on a new machine), then
@@ -153,7 +153,8 @@ def main(argv=None) -> int:
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--booths", default=",".join(BOOTHS))
     ap.add_argument("--baseline", default="", help="git revision measured alongside, e.g. main")
-    ap.add_argument("--revision", default="", help="git revision measured as 'after' (default: the working tree)")
+    ap.add_argument("--revision", default="",
+                    help="git revision measured as 'after' (default: the working tree)")
     ap.add_argument("--skip-web", action="store_true")
     ap.add_argument("--skip-compare", action="store_true")
     ap.add_argument("--skip-ratio", action="store_true")
@@ -180,7 +181,8 @@ def main(argv=None) -> int:
         print(json.dumps(info, indent=2))
         return 0
     print(f"cpus {info['cpus']}, load average {info['loadavg_start']:.2f} → {info['loadavg_end']:.2f}; "
-          f"seconds, each a fresh process; before: {a.baseline or '-'}, after: {a.revision or 'the working tree'}")
+          f"seconds, each a fresh process; before: {a.baseline or '-'}, "
+          f"after: {a.revision or 'the working tree'}")
     cols = [f"{t} {s}" for s in ("empty", "warm") for t in trees]
     print(f"\n{'':36s}" + "".join(f"{c + ' s':>15s}" for c in cols))
     for name, row in info["rows"].items():
