@@ -41,6 +41,7 @@ __all__ = [
     "perspective",
     "tessellate_surface",
     "noise_texture",
+    "model_code_digest",
 ]
 
 #: position 3, normal 3, uv 2, material 1, irradiance 16
@@ -299,9 +300,81 @@ def _irradiance_bands(ir, lighting, points, normals, cell_mm: float, chunk: int 
     return np.clip(out, 0.0, None)
 
 
+_CODE_DIGESTS: dict = {}
+
+
+def model_code_digest(ir) -> str:
+    """Hash of everything besides the IR that the light at the vertices is computed from.
+
+    The source and data files of the transport (``engine/light``, with its effects and tables),
+    of the spectra (``engine/spectra``), of this module and of every enabled effect's module
+    (plugins included).  A change to any of them gives the per-vertex results another disk
+    cache key, so an edited model never reads a stale result (hashing ~2 MB: a few ms, once
+    per process and set of effects).
+
+    Parameters
+    ----------
+    ir
+        The compiled booth (its enabled effects name the plugin modules).
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
+    import inspect
+    from pathlib import Path
+
+    from lbscene.engine import light, spectra
+    from lbscene.engine.light.effects.registry import get_effect
+
+    files = set()
+    for pkg in (light, spectra):
+        root = Path(pkg.__file__).parent
+        files.update(f for f in root.rglob("*") if f.is_file() and "__pycache__" not in f.parts)
+    files.add(Path(__file__))
+    for eid in sorted(ir.effects):
+        try:
+            src = inspect.getsourcefile(get_effect(eid))
+        except (KeyError, TypeError):
+            src = None
+        if src:
+            files.add(Path(src))
+    key = tuple(sorted(str(f) for f in files))
+    hit = _CODE_DIGESTS.get(key)
+    if hit is None:
+        h = hashlib.blake2b(digest_size=16)
+        for f in sorted(files, key=lambda f: (f.name, str(f))):
+            h.update(f.name.encode())
+            h.update(f.read_bytes())
+        hit = _CODE_DIGESTS[key] = h.hexdigest()
+    return hit
+
+
+def _vertex_irradiance_bands(ir, lighting, points, normals, cell_mm: float) -> np.ndarray:
+    """:func:`_irradiance_bands`, kept in the disk cache (key: the receivers, the IR's content
+    hash, the lighting, the interpolation cell and :func:`model_code_digest`): the same booth
+    and view in a later process costs a file read instead of the forward model."""
+    from lbscene.engine.files.disk_cache import cached_array
+
+    return cached_array("vertex_irradiance", (np.asarray(points, float), np.asarray(normals, float)),
+                        (ir.content_hash, lighting, float(cell_mm), model_code_digest(ir)),
+                        lambda: _irradiance_bands(ir, lighting, points, normals, cell_mm),
+                        shape=(len(points), ir.grid.count))
+
+
 def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
-    fm = _forward_model(ir, lighting)
-    return np.clip(fm.spectral_irradiance_1nm([point], [normal])[0], 0.0, None)
+    from lbscene.engine.files.disk_cache import cached_array
+
+    def compute():
+        fm = _forward_model(ir, lighting)
+        return np.clip(fm.spectral_irradiance_1nm([point], [normal])[0], 0.0, None)
+
+    from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM
+
+    return cached_array("point_irradiance_1nm", (np.asarray(point, float), np.asarray(normal, float)),
+                        (ir.content_hash, lighting, model_code_digest(ir)), compute,
+                        shape=(REFERENCE_WAVELENGTHS_NM.size,))
 
 
 def noise_texture(mask: np.ndarray) -> np.ndarray:
@@ -497,8 +570,8 @@ class SceneBuilder:
                 key = (mname, hashlib.sha256(np.ascontiguousarray(pl).tobytes()
                                              + np.ascontiguousarray(nl).tobytes()).hexdigest())
                 if key not in self._irradiance_memo:
-                    self._irradiance_memo[key] = _irradiance_bands(ir, self.lighting, pl, nl,
-                                                                   self.indirect_cell_mm)
+                    self._irradiance_memo[key] = _vertex_irradiance_bands(ir, self.lighting, pl, nl,
+                                                                          self.indirect_cell_mm)
                 irr = self._irradiance_memo[key].copy()
             else:
                 irr = np.zeros((0, grid.count))

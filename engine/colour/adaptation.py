@@ -18,8 +18,8 @@ so the shaders apply it as a ``mat3`` uniform (``u_adaptation`` in ``lib_display
 Methods (``ADAPTATION_METHODS``):
 
 ``"cat16"`` (default)
-    what a person in the booth sees: equation (1), computed by colour-science's
-    ``matrix_chromatic_adaptation_VonKries(..., transform="CAT16")``.
+    what a person in the booth sees: equation (1), as colour-science's
+    ``matrix_chromatic_adaptation_VonKries(..., transform="CAT16")`` computes it.
 ``"none"``
     what a camera sees (a fixed D65 white balance): the identity; a scene under illuminant A
     looks orange on a D65 display.
@@ -40,10 +40,16 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ADAPTATION_METHODS", "DEFAULT_ADAPTATION", "ADAPTATION_DESCRIPTIONS",
+__all__ = ["ADAPTATION_METHODS", "DEFAULT_ADAPTATION", "ADAPTATION_DESCRIPTIONS", "M_CAT16",
            "adaptation_matrix", "adapt_xyz"]
 
 ADAPTATION_METHODS = ("cat16", "none")
+#: the CAT16 matrix M16, XYZ → cone space (Li et al. 2017, equation (4); colour-science's ``CAT_CAT16``,
+#: which ``tests/colour/test_cat16.py`` checks equation (1) against): written out, because
+#: importing colour-science (with matplotlib) cost every command's first frame 1–5 s
+M_CAT16 = np.array([[0.401288, 0.650173, -0.051461],
+                    [-0.250268, 1.204414, 0.045854],
+                    [-0.002079, 0.048952, 0.953127]])
 DEFAULT_ADAPTATION = "cat16"
 #: one line per method, for reports, PNG metadata and ``--help``
 ADAPTATION_DESCRIPTIONS = {
@@ -78,10 +84,9 @@ def adaptation_matrix(white_source_xyz, white_target_xyz, method: str = DEFAULT_
     wt = np.asarray(white_target_xyz, float)
     if not (ws[1] > 0 and wt[1] > 0):
         raise ValueError("adaptation whites need Y > 0")
-    from colour.adaptation import matrix_chromatic_adaptation_VonKries
-
-    return np.asarray(matrix_chromatic_adaptation_VonKries(ws / ws[1], wt / wt[1], transform="CAT16"),
-                      float)
+    lms_s = M_CAT16 @ (ws / ws[1])
+    lms_t = M_CAT16 @ (wt / wt[1])
+    return np.linalg.inv(M_CAT16) @ ((lms_t / lms_s)[:, None] * M_CAT16)
 
 
 def adapt_xyz(xyz, white_source_xyz, white_target_xyz, method: str = DEFAULT_ADAPTATION) -> np.ndarray:

@@ -4,8 +4,9 @@ Evaluate :data:`~lbscene.schemas.spectrum.SpectrumSpec` nodes into numbers.
 Every spectrum becomes a 1 nm array on
 :data:`~lbscene.engine.spectra.bands.REFERENCE_WAVELENGTHS_NM` (360–830 nm); band
 values come from :meth:`BandGrid.integrate` (band means), never from point
-samples.  Standard data (CIE illuminants, measured light sources, V(λ), CMFs)
-come from colour-science, imported lazily.
+samples.  Standard data (CIE illuminants, measured light sources) come from
+colour-science, imported lazily; V(λ) and the CMFs, which every booth needs, from
+tables of its values shipped in ``data/`` (:data:`CIE_TABLES`).
 
 ``kind`` decides what happens outside a measured range: emission spectra are
 zero there (unknown emission is not invented), reflectances and
@@ -43,23 +44,52 @@ ILLUMINANT_ALIASES = {f"F{i}": f"FL{i}" for i in range(1, 13)}
 K_M_LM_PER_W = 683.0
 
 
-@lru_cache(maxsize=1)
-def photopic_1nm() -> np.ndarray:
-    """CIE 1924 photopic V(λ) on the 1 nm reference grid."""
+#: V(λ) and the CIE 1931 2° colour matching functions on the 1 nm reference grid, tabulated from
+#: colour-science by ``scripts/gen_cie_tables.py`` (a test checks they are current): reading them
+#: takes a millisecond, importing colour-science (which imports matplotlib) 1–5 s, which every
+#: command's first frame paid
+CIE_TABLES = Path(__file__).resolve().parent / "data" / "cie_1nm.npz"
+
+
+def photopic_from_colour_science() -> np.ndarray:
+    """CIE 1924 photopic V(λ) on the 1 nm reference grid, from colour-science (the table's source)."""
     import colour
 
     sd = colour.colorimetry.SDS_LEFS_PHOTOPIC["CIE 1924 Photopic Standard Observer"]
     return np.interp(REFERENCE_WAVELENGTHS_NM, sd.wavelengths, sd.values, left=0.0, right=0.0)
 
 
-@lru_cache(maxsize=1)
-def cmfs_1nm() -> np.ndarray:
-    """CIE 1931 2° colour matching functions, shape (471, 3)."""
+def cmfs_from_colour_science() -> np.ndarray:
+    """CIE 1931 2° colour matching functions (471, 3), from colour-science (the table's source)."""
     import colour
 
     cm = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     return np.stack([np.interp(REFERENCE_WAVELENGTHS_NM, cm.wavelengths, cm.values[:, i],
                                left=0.0, right=0.0) for i in range(3)], axis=1)
+
+
+@lru_cache(maxsize=1)
+def _cie_tables() -> dict[str, np.ndarray]:
+    try:
+        with np.load(CIE_TABLES, allow_pickle=False) as z:
+            t = {k: np.array(z[k], float) for k in ("photopic", "cmfs_1931_2deg")}
+        if t["photopic"].shape == REFERENCE_WAVELENGTHS_NM.shape and \
+                t["cmfs_1931_2deg"].shape == REFERENCE_WAVELENGTHS_NM.shape + (3,):
+            return t
+    except (OSError, ValueError, KeyError):
+        pass
+    # no usable table (a damaged install): the source itself
+    return {"photopic": photopic_from_colour_science(), "cmfs_1931_2deg": cmfs_from_colour_science()}
+
+
+def photopic_1nm() -> np.ndarray:
+    """CIE 1924 photopic V(λ) on the 1 nm reference grid (471,)."""
+    return _cie_tables()["photopic"]
+
+
+def cmfs_1nm() -> np.ndarray:
+    """CIE 1931 2° colour matching functions, shape (471, 3)."""
+    return _cie_tables()["cmfs_1931_2deg"]
 
 
 def luminous_efficacy_sum(spectral_1nm: np.ndarray) -> np.ndarray:

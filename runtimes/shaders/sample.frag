@@ -136,6 +136,17 @@ float edge_integral(vec3 a, vec3 b) {
 // to the shading point, wound counter-clockwise as seen from it; the back side gives 0).
 float ltc_quad(mat3 minv, vec3 q0, vec3 q1, vec3 q2, vec3 q3) {
     vec3 p[4] = vec3[4](minv * q0, minv * q1, minv * q2, minv * q3);
+    bvec4 above = greaterThanEqual(vec4(p[0].z, p[1].z, p[2].z, p[3].z), vec4(0.0));
+    if (!any(above)) {
+        return 0.0;                           // wholly below the horizon: nothing to clip
+    }
+    if (all(above)) {
+        // wholly above: the clipped polygon is the quad itself; the same sum without the
+        // clipping's dynamically indexed array (slow on CPU rasterisers)
+        vec3 a = normalize(p[0]), b = normalize(p[1]), c = normalize(p[2]), d = normalize(p[3]);
+        float s4 = edge_integral(a, b) + edge_integral(b, c) + edge_integral(c, d) + edge_integral(d, a);
+        return max(-s4, 0.0) * (0.5 * INV_PI);
+    }
     vec3 c[6];
     int n = 0;
     for (int i = 0; i < 4; i++) {

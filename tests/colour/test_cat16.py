@@ -64,3 +64,17 @@ def test_display_model_grey_under_a_is_neutral():
     # remove), so a grey that is neutral as seen is within 1.5 code values of R = G = B
     assert np.ptp(adapted) < 1.5 / 255
     assert camera[0] - camera[2] > 0.3
+
+
+def test_equation_1_is_colour_sciences_von_kries_cat16():
+    """The matrix is written out (colour-science is not imported on a render's path): it is
+    colour-science's, and so is the transform."""
+    import colour
+    from colour.adaptation import matrix_chromatic_adaptation_VonKries
+
+    from lbscene.engine.colour.adaptation import M_CAT16, adaptation_matrix
+
+    np.testing.assert_array_equal(M_CAT16, colour.adaptation.CAT_CAT16)
+    for ws, wt in ((W_A, W_D65), (W_D65, W_A), (np.array([96.4, 100.0, 82.5]), W_D65)):
+        want = matrix_chromatic_adaptation_VonKries(ws / ws[1], wt / wt[1], transform="CAT16")
+        np.testing.assert_allclose(adaptation_matrix(ws, wt), want, rtol=0, atol=1e-12)

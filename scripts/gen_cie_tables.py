@@ -1,0 +1,25 @@
+"""Regenerate the CIE tables that travel with lbscene (``engine/spectra/data/cie_1nm.npz``).
+
+V(λ) and the CIE 1931 2° colour matching functions on the 1 nm reference grid, as
+colour-science gives them; run after upgrading colour-science or changing the grid
+(``tests/engine/test_cie_tables.py`` fails while the table is stale).
+
+    .venv/bin/python scripts/gen_cie_tables.py
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lbscene.engine.spectra.evaluate import CIE_TABLES, cmfs_from_colour_science, photopic_from_colour_science
+
+
+def main() -> None:
+    CIE_TABLES.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(CIE_TABLES, photopic=photopic_from_colour_science(),
+                        cmfs_1931_2deg=cmfs_from_colour_science())
+    print(f"{CIE_TABLES.name}: {CIE_TABLES.stat().st_size / 1024:.0f} KiB")
+
+
+if __name__ == "__main__":
+    main()
