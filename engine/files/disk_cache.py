@@ -112,7 +112,7 @@ def _read_index(root_fd: int) -> dict[str, dict] | None:
             return {}
         return {k: v for k, v in entries.items() if _ENTRY_RE.match(k) and isinstance(v, dict)
                 and all(isinstance(v.get(f), int) for f in ("dev", "ino", "size"))}
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):    # unreadable or nested past the parser: owns nothing
         return {}
     finally:
         os.close(fd)

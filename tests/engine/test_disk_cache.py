@@ -233,3 +233,15 @@ def test_a_header_claiming_a_huge_array_is_not_allocated(cache):
     np.testing.assert_array_equal(out, np.ones((3, 2)))
     assert peak < 50 * 2 ** 20
     np.testing.assert_array_equal(np.load(f), np.ones((3, 2)))           # and replaced
+
+
+def test_an_index_nested_past_the_json_parser_owns_nothing(cache):
+    """A cache index of 100 000 nested arrays (RecursionError in the parser) is not believed: the
+    value is computed, nothing is deleted, no traceback."""
+    cache.mkdir(parents=True)
+    (cache / disk_cache.INDEX_NAME).write_text("[" * 100_000 + "]" * 100_000)
+    (cache / "mine.npy").write_bytes(b"the user's file")
+    calls, compute = counter()
+    out = disk_cache.cached_array("ff", (np.zeros(2),), (1,), compute)
+    assert calls == [1.0] and out.shape == (3, 2)
+    assert (cache / "mine.npy").read_bytes() == b"the user's file"

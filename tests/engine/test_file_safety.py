@@ -790,3 +790,18 @@ def test_a_build_folder_another_lbscene_run_is_writing_into_is_left_alone(minima
         sleeper.wait()
     assert run_cli("build", minimal_booth, "--out", out)[0] == 0       # once it is gone, its leftover goes
     assert not busy.exists()
+
+
+def test_a_ledger_nested_past_the_json_parser_is_not_believed(meas_set, run_cli, tmp_path):
+    """A ``.lbscene-outputs.json`` of 100 000 nested arrays: not believed (no traceback); a new
+    output beside it is written, the user's file it might have listed is left alone."""
+    out = tmp_path / "nested"
+    out.mkdir()
+    (out / ".lbscene-outputs.json").write_text("[" * 100_000 + "]" * 100_000)
+    (out / "r.json").write_text("the user's own r.json")
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--no-diagnose", "--json-out", out / "r.json")
+    assert code == 2 and "error LB611: --json-out: file exists and was not written by lbscene" in err
+    assert "Traceback" not in err and (out / "r.json").read_text() == "the user's own r.json"
+    code, _, err = run_cli("compare", meas_set, "--no-history", "--no-diagnose", "--json-out", out / "new.json")
+    assert code == 0, err
+    assert json.loads((out / "new.json").read_text())["n_points"] > 0
