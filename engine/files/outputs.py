@@ -122,7 +122,8 @@ _MAX_MANIFEST_BYTES = 64 * 1024 * 1024
 #: Folders deeper than this inside an output folder are not lbscene's (and are not descended into).
 _MAX_DEPTH = 32
 #: ``errno`` values of a full disk or an exhausted quota.
-NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
+#: a full disk, a quota, or a file larger than the file system or the process may write (EFBIG)
+NO_SPACE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 #: lbscene's temporaries: ``.<name>.lbtmp-<pid>-<start token>-<random><suffix>`` (and ``lbold``, the old
 #: copy of a folder being replaced where folders cannot be exchanged); ``<start token>`` is absent in
