@@ -34,10 +34,18 @@ def _ir_hash(build: Path) -> str:
     return json.loads((build / "manifest.json").read_text())["ir_hash"]
 
 
+def _default_signals() -> None:
+    """In the child: the signals lbscene handles at their default disposition, as in a terminal.
+    A run under ``nohup`` (or a CI runner that ignores SIGHUP) hands its children SIGHUP ignored,
+    and lbscene keeps an ignored signal ignored, as ``nohup`` asks."""
+    for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 def _build(booth: Path, out: Path, env=None) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "lbscene", "build", str(booth), "--out", str(out),
                              "--format", "json"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            env={**os.environ, **(env or {})})
+                            env={**os.environ, **(env or {})}, preexec_fn=_default_signals)
 
 
 def _leftovers(folder: Path, name: str) -> list[str]:
@@ -199,7 +207,8 @@ def test_a_stopped_bake_takes_its_child_with_it(sig, minimal_booth, tmp_path):
     wrapper.write_text(_BAKE_WRAPPER)
     marker = tmp_path / "child.pid"
     p = subprocess.Popen([sys.executable, str(wrapper), str(marker), "bake", str(build), "--lighting", "A"],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path)
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path,
+                         preexec_fn=_default_signals)
     t0 = time.monotonic()
     while not marker.exists():
         assert p.poll() is None, p.stderr.read().decode()
