@@ -32,8 +32,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from .outputs import (_O_CREATE, _O_NOFOLLOW_READ, _dir_fd, _own_regular_file, _tmp_name, _tmp_prefix,
-                      _umask, _write_all, clean_leftovers, commit_file, replace_dir, temporary_dir_for)
+from .outputs import (_O_NOFOLLOW_READ, _dir_fd, _own_regular_file, _tmp_prefix, _umask, clean_leftovers,
+                      commit_file, replace_dir, temporary_dir_for, write_via_temporary)
 
 __all__ = ["atomic_path", "write_atomic", "temporary_dir_for", "atomic_replace_dir"]
 
@@ -82,20 +82,7 @@ def write_atomic(path: Path | str, data: bytes | str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_leftovers(path.parent, path.name)
     with _dir_fd(path.parent) as dfd:
-        tmp = _tmp_name(path, suffix=".tmp").name
-        fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=dfd)
-        try:
-            try:
-                _write_all(fd, raw)
-                os.fchmod(fd, 0o666 & ~_umask())
-            finally:
-                os.close(fd)
-            commit_file(dfd, tmp, dfd, path.name, shown=path, may_replace=_own_regular_file)
-        finally:
-            try:
-                os.unlink(tmp, dir_fd=dfd)
-            except FileNotFoundError:
-                pass
+        write_via_temporary(dfd, path, raw, may_replace=_own_regular_file)
 
 
 def atomic_replace_dir(tmp_dir: Path | str, out_dir: Path | str, *, option: str | None = None) -> None:

@@ -119,25 +119,12 @@ def _read_index(root_fd: int) -> dict[str, dict] | None:
 
 
 def _write_index(root: Path, root_fd: int, entries: dict[str, dict]) -> None:
-    from .outputs import _O_CREATE, _own_regular_file, _tmp_name, _umask, _write_all, commit_file
+    from .outputs import _own_regular_file, write_via_temporary
 
     text = json.dumps({"about": "entries written by lbscene's geometry cache; the only files it deletes "
                                 "or replaces", "format": FORMAT, "entries": dict(sorted(entries.items()))},
                       indent=0) + "\n"
-    tmp = _tmp_name(root / INDEX_NAME, suffix=".tmp").name
-    fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=root_fd)
-    try:
-        try:
-            _write_all(fd, text.encode())
-            os.fchmod(fd, 0o666 & ~_umask())
-        finally:
-            os.close(fd)
-        commit_file(root_fd, tmp, root_fd, INDEX_NAME, shown=root / INDEX_NAME, may_replace=_own_regular_file)
-    finally:
-        try:
-            os.unlink(tmp, dir_fd=root_fd)
-        except FileNotFoundError:
-            pass
+    write_via_temporary(root_fd, root / INDEX_NAME, text.encode(), may_replace=_own_regular_file)
 
 
 def _is_entry(dir_fd: int, name: str, rec: dict | None) -> bool:
@@ -285,7 +272,7 @@ def _load(path: Path, shape: tuple | None, limit: int) -> np.ndarray | None:
 def _store(root: Path, kind: str, key: str, out: np.ndarray, limit: int) -> None:
     """Write the entry ``kind/key.npy`` (unless a file the cache did not write has that name), record
     it in the index and prune, under an exclusive lock on the cache folder."""
-    from .outputs import _O_CREATE, _tmp_name, _umask, clean_leftovers, commit_file
+    from .outputs import clean_leftovers, write_via_temporary
     from .diagnostics import LbsceneUserError
 
     root.mkdir(parents=True, exist_ok=True)
@@ -310,27 +297,17 @@ def _store(root: Path, kind: str, key: str, out: np.ndarray, limit: int) -> None
             if exists and not _is_entry(kind_fd, name, entries.get(rel)):
                 return                      # not the cache's file: left alone, the result not kept
             clean_leftovers(root / kind, name)
-            tmp = _tmp_name(root / kind / name, suffix=".npy").name
-            fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=kind_fd)
+            rec = entries.get(rel)
+
+            def save(fd: int) -> None:
+                with os.fdopen(os.dup(fd), "wb") as f:
+                    np.lib.format.write_array(f, np.ascontiguousarray(out), allow_pickle=False)
+
             try:
-                try:
-                    with os.fdopen(os.dup(fd), "wb") as f:
-                        np.lib.format.write_array(f, np.ascontiguousarray(out), allow_pickle=False)
-                    os.fchmod(fd, 0o666 & ~_umask())
-                    st = os.fstat(fd)
-                finally:
-                    os.close(fd)
-                rec = entries.get(rel)
-                try:
-                    commit_file(kind_fd, tmp, kind_fd, name, shown=root / rel,
-                                may_replace=lambda d, n: _is_entry(d, n, rec))
-                except LbsceneUserError:
-                    return                  # a file appeared under the name meanwhile: not ours
-            finally:
-                try:
-                    os.unlink(tmp, dir_fd=kind_fd)
-                except FileNotFoundError:
-                    pass
+                st = write_via_temporary(kind_fd, root / rel, save, suffix=".npy",
+                                         may_replace=lambda d, n: _is_entry(d, n, rec))
+            except LbsceneUserError:
+                return                      # a file appeared under the name meanwhile: not ours
             entries[rel] = {"dev": st.st_dev, "ino": st.st_ino, "size": st.st_size}
         finally:
             os.close(kind_fd)

@@ -949,6 +949,36 @@ def _umask() -> int:
     return mask
 
 
+def write_via_temporary(dir_fd: int, path: Path, write: "bytes | Callable[[int], None]", *,
+                        may_replace: Callable[[int, str], bool], suffix: str = ".tmp",
+                        option: str | None = None, location: SourceLocation | None = None) -> os.stat_result:
+    """Write ``path`` (its name in the folder ``dir_fd``) through an exclusively created temporary
+    beside it: ``write`` is the bytes, or a function given the temporary's descriptor; the file is
+    made readable as the umask allows, then moved in by :func:`commit_file` (``may_replace``
+    decides over an existing file).  The temporary is removed whatever happens.  Returns the
+    written file's ``fstat``."""
+    tmp = _tmp_name(path, suffix=suffix).name
+    fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=dir_fd)
+    try:
+        try:
+            if callable(write):
+                write(fd)
+            else:
+                _write_all(fd, write)
+            os.fchmod(fd, 0o666 & ~_umask())
+            st = os.fstat(fd)
+        finally:
+            os.close(fd)
+        commit_file(dir_fd, tmp, dir_fd, path.name, shown=path, may_replace=may_replace, option=option,
+                    location=location)
+        return st
+    finally:
+        try:
+            os.unlink(tmp, dir_fd=dir_fd)
+        except FileNotFoundError:
+            pass
+
+
 def _mkdirs(folder: Path, option: str | None = None) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -1000,22 +1030,10 @@ def _record(path: Path, sha256: str, size: int, command: str | None = None) -> N
         text = json.dumps({"about": "files written by lbscene in this folder; an output is replaced "
                                     "only if it is listed here with its current sha256",
                            "files": dict(sorted(files.items()))}, indent=1) + "\n"
-        tmp = _tmp_name(folder / LEDGER_NAME, suffix=".tmp").name
-        tfd = os.open(tmp, _O_CREATE, 0o600, dir_fd=fd)
         try:
-            try:
-                _write_all(tfd, text.encode())
-                os.fchmod(tfd, 0o666 & ~_umask())
-            finally:
-                os.close(tfd)
-            commit_file(fd, tmp, fd, LEDGER_NAME, shown=folder / LEDGER_NAME, may_replace=_is_own_ledger)
+            write_via_temporary(fd, folder / LEDGER_NAME, text.encode(), may_replace=_is_own_ledger)
         except LbsceneUserError:
             pass                                     # someone else's file took the ledger's name
-        finally:
-            try:
-                os.unlink(tmp, dir_fd=fd)
-            except FileNotFoundError:
-                pass
 
 
 # --------------------------------------------------------------------------- writing files
@@ -1084,21 +1102,7 @@ def write_output(path: Path | str, data: bytes | str, *, option: str | None = No
                     return _mismatch(name, dir_fd, replace_if_sha256) is None
             else:
                 may_replace = _ledger_may_replace(path.name, dfd)
-            tmp = _tmp_name(path, suffix=".tmp").name
-            fd = os.open(tmp, _O_CREATE, 0o600, dir_fd=dfd)
-            try:
-                try:
-                    _write_all(fd, raw)
-                    os.fchmod(fd, 0o666 & ~_umask())
-                finally:
-                    os.close(fd)
-                commit_file(dfd, tmp, dfd, path.name, shown=path, may_replace=may_replace, option=option,
-                            location=location)
-            finally:
-                try:
-                    os.unlink(tmp, dir_fd=dfd)
-                except FileNotFoundError:
-                    pass
+            write_via_temporary(dfd, path, raw, may_replace=may_replace, option=option, location=location)
     except OSError as exc:
         err = _write_error(exc, path, option, location)
         if err is None:
