@@ -98,18 +98,6 @@ def _tolerant_streams() -> None:
             pass
 
 
-def _tolerant_streams() -> None:
-    """A console that cannot encode a character (``PYTHONIOENCODING=ascii``, a C locale) prints
-    it as a backslash escape instead of failing the command."""
-    for stream in (sys.stdout, sys.stderr):
-        reconfigure = getattr(stream, "reconfigure", None)
-        if reconfigure is not None and getattr(stream, "errors", None) == "strict":
-            try:
-                reconfigure(errors="backslashreplace")
-            except (ValueError, OSError):
-                pass
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning user errors into exit code 2.
 
@@ -131,7 +119,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str]) -> int:
     as_json = _wants_json(argv)
-    _tolerant_streams()
     from lbscene.engine.files.outputs import INPUTS
 
     INPUTS.clear()   # the inputs of this run only (tests call main() many times in one process)

@@ -38,8 +38,7 @@ from lbscene.engine.spectra.bands import DEFAULT_GRID, REFERENCE_WAVELENGTHS_NM
 from lbscene.schemas.booth import Booth
 
 from .effect_params import validate_effects
-from .meshes import TOLERANCE_MM
-from .meshes import inside_booth as _inside
+from .meshes import TOLERANCE_MM, inside_booth
 
 __all__ = ["lint_booth", "illuminance_rules", "needs_illuminance_rules", "spectrum_coverage",
            "ILLUMINANCE_RANGES_LX", "TOLERANCE_MM"]
@@ -276,7 +275,7 @@ def _placement(doc: LoadedDocument) -> list[Diagnostic]:
         ax = ax / np.linalg.norm(ax)
         ends = [c] if lp.length_mm == 0 else [c - ax * lp.length_mm / 2, c + ax * lp.length_mm / 2]
         for e in ends:
-            if not _inside(e, booth, margin=0.0):
+            if not inside_booth(e, booth, margin=0.0):
                 E("LB300", f"lamp '{lp.id}' extends outside the booth interior", "lamps", i,
                   "position_mm", value=f"point {np.round(e, 1).tolist()} mm",
                   expected="inside the interior box "
@@ -293,13 +292,13 @@ def _placement(doc: LoadedDocument) -> list[Diagnostic]:
         sx, sy = pf.size_mm[0] / 2, pf.size_mm[1] / 2
         for dx, dy in ((-sx, -sy), (sx, -sy), (sx, sy), (-sx, sy)):
             q = R @ (c + [dx, dy, 0.0] - o) + o
-            if not _inside(q, booth):
+            if not inside_booth(q, booth):
                 E("LB308", f"geometry '{g.name}' turns the platform out of the booth", "geometries", i,
                   "platform_rotation_deg", value=f"corner at {np.round(q, 1).tolist()} mm",
                   expected="a platform inside the interior at every geometry (raise it, or turn it "
                            "about an edge with platform.pivot_mm)")
                 break
-    if not _inside(booth.sample_position_mm, booth):
+    if not inside_booth(booth.sample_position_mm, booth):
         E("LB306", "sample position is outside the booth", "sample_position_mm",
           value=str(list(booth.sample_position_mm)), expected="a point inside the interior")
     return diags

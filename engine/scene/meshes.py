@@ -8,13 +8,12 @@ rotation for platform-mounted meshes).  ``validate-config`` and the compiler rea
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from lbscene.engine.files.diagnostics import Diagnostic, LbsceneUserError
-from lbscene.engine.files.load import LoadedDocument, display_path
+from lbscene.engine.files.load import LoadedDocument
 from lbscene.schemas.booth import Booth
 
 __all__ = ["MAX_MESH_BYTES", "ObjScan", "mesh_diagnostics", "obj_diagnostics", "usd_diagnostics",
@@ -32,9 +31,6 @@ def inside_booth(p, booth: Booth, margin: float = 0.0) -> bool:
     t = TOLERANCE_MM
     return (abs(x) <= w / 2 - margin + t and abs(y) <= d / 2 - margin + t
             and -t + margin <= z <= h - margin + t)
-
-
-_inside = inside_booth
 
 
 def _rotation_matrix_xyz(deg) -> np.ndarray:
@@ -214,7 +210,7 @@ def mesh_diagnostics(v_mm: np.ndarray, polys, booth: Booth, *, where_vertex, whe
                   for g in booth.geometries if g.platform_rotation_deg]
     for label, R, o in poses:
         q = (v - o) @ R.T + o
-        outside = [i for i in range(len(q)) if not _inside(q[i], booth)]
+        outside = [i for i in range(len(q)) if not inside_booth(q[i], booth)]
         if outside:
             i = outside[0]
             out.append(Diagnostic(
