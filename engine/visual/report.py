@@ -288,10 +288,12 @@ def render_html(stats: dict, session) -> str:
     scale_txt = (f"grey scale {scale.min:g}–{scale.max:g} in steps of {scale.step:g} (5: no visible difference; "
                  "ΔV from the grades by ISO 105-A02)" if scale.type == "grey_scale" else "estimated ΔE (ΔV = estimate)")
     return f"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8"><title>lbscene visual report: {e(stats['session'])}</title>
-<style>body{{font:14px/1.45 system-ui,sans-serif;margin:24px;max-width:1100px}}table{{border-collapse:collapse}}
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>lbscene visual report: {e(stats['session'])}</title>
+<style>body{{font:14px/1.45 system-ui,sans-serif;margin:16px;max-width:1100px}}
+table{{border-collapse:collapse;display:block;max-width:100%;overflow-x:auto}}
 td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}td:nth-child(-n+4){{text-align:left}}
-figure{{display:inline-block;margin:8px}}img{{max-width:100%}}</style></head><body>
+figure{{display:inline-block;margin:8px 0;max-width:100%}}img{{max-width:100%;height:auto}}</style></head><body>
 <h1>Visual test: {e(stats['session'])}</h1>
 <p>{stats['responses']} responses from {len(stats['observers'])} observers; {s['cases_seen']} of
 {s['cases_in_session']} cases; response: {e(scale_txt)}. Session hash {e(stats['session_hash'])}.</p>

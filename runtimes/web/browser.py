@@ -5,7 +5,11 @@ The folder is served on ``127.0.0.1`` by Python's :mod:`http.server` in a thread
 page is opened with URL parameters (see ``assets/viewer.js``) that make it render,
 measure frame times and POST a JSON report (frame times, the canvas pixels read back
 with ``readPixels``) to ``/report`` on the same server.  :func:`screenshot` takes a
-browser screenshot (``--screenshot``) of the canvas-only page instead.
+browser screenshot (``--screenshot``) of the canvas-only page instead.  :func:`open_page` drives
+the page as a user does, through the DevTools protocol over a pipe (``--remote-debugging-pipe``:
+JSON messages ending in a NUL byte on file descriptors 3 and 4 of Chromium): it evaluates
+expressions in the page, taps and drags with emulated touch, resizes the viewport and takes
+screenshots of the whole page.
 
 Chromium runs with SwiftShader (a CPU implementation of WebGL2), no sandbox, a fresh
 profile and no background network traffic::
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import shutil
 import subprocess
 import tempfile
@@ -37,7 +42,7 @@ from urllib.parse import urlencode
 import numpy as np
 
 __all__ = ["find_chromium", "chromium_flags", "serve", "BrowserReport", "run_viewer", "screenshot",
-           "image_delta_e00"]
+           "image_delta_e00", "Page", "open_page"]
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
@@ -184,6 +189,162 @@ def screenshot(folder: Path, out_png: Path, *, size_px=(512, 384), extra: dict |
     if not out_png.is_file():
         raise RuntimeError("chromium wrote no screenshot:\n" + res.stdout.decode(errors="replace")[-3000:])
     return out_png
+
+
+class Page:
+    """A page of a Chromium started by :func:`open_page`, driven through the DevTools protocol.
+
+    Each method sends one or a few protocol commands and waits for their answers
+    (``timeout_s``); a protocol error raises RuntimeError with Chromium's message.
+    """
+
+    def __init__(self, proc, to_browser, from_browser, timeout_s: float) -> None:
+        self._proc = proc
+        self._out = to_browser
+        self._in = from_browser
+        self._buf = b""
+        self._next_id = 0
+        self._timeout_s = timeout_s
+        self.session: str | None = None
+
+    # -- protocol
+    def _read_message(self, deadline: float) -> dict:
+        import select
+
+        while b"\0" not in self._buf:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise RuntimeError("no answer from chromium in time")
+            ready, _, _ = select.select([self._in], [], [], min(left, 1.0))
+            if ready:
+                chunk = os.read(self._in, 1 << 20)
+                if not chunk:
+                    raise RuntimeError("chromium closed the DevTools pipe")
+                self._buf += chunk
+        raw, self._buf = self._buf.split(b"\0", 1)
+        return json.loads(raw)
+
+    def send(self, method: str, params: dict | None = None, *, session: bool = True) -> dict:
+        """One protocol command; its ``result``."""
+        self._next_id += 1
+        msg = {"id": self._next_id, "method": method, "params": params or {}}
+        if session and self.session:
+            msg["sessionId"] = self.session
+        os.write(self._out, json.dumps(msg).encode() + b"\0")
+        deadline = time.monotonic() + self._timeout_s
+        while True:
+            m = self._read_message(deadline)
+            if m.get("id") == self._next_id:
+                if "error" in m:
+                    raise RuntimeError(f"{method}: {m['error'].get('message')}")
+                return m.get("result", {})
+
+    # -- the page
+    def evaluate(self, expression: str):
+        """The value of a JavaScript expression in the page (promises awaited)."""
+        r = self.send("Runtime.evaluate", {"expression": expression, "returnByValue": True,
+                                           "awaitPromise": True})
+        if "exceptionDetails" in r:
+            raise RuntimeError(f"page raised: {r['exceptionDetails'].get('text')} "
+                               f"{r['exceptionDetails'].get('exception', {}).get('description', '')}")
+        return r["result"].get("value")
+
+    def wait_for(self, expression: str, timeout_s: float | None = None):
+        """Poll ``expression`` until it is truthy; its value."""
+        deadline = time.monotonic() + (timeout_s or self._timeout_s)
+        while time.monotonic() < deadline:
+            v = self.evaluate(expression)
+            if v:
+                return v
+            time.sleep(0.1)
+        raise RuntimeError(f"timed out waiting for {expression!r}")
+
+    def set_viewport(self, width_px: int, height_px: int) -> None:
+        """The CSS viewport (device pixels = CSS pixels), as a tablet of that size in landscape."""
+        self.send("Emulation.setDeviceMetricsOverride",
+                  {"width": width_px, "height": height_px, "deviceScaleFactor": 1, "mobile": False})
+
+    def _touch(self, kind: str, points: list[tuple[float, float]]) -> None:
+        self.send("Input.dispatchTouchEvent",
+                  {"type": kind, "touchPoints": [{"x": x, "y": y, "id": 1} for x, y in points]})
+
+    def tap(self, x: float, y: float) -> None:
+        """A finger's tap at CSS pixel (x, y)."""
+        self._touch("touchStart", [(x, y)])
+        self._touch("touchEnd", [])
+
+    def drag(self, x0: float, y0: float, x1: float, y1: float, steps: int = 8) -> None:
+        """A finger's drag from (x0, y0) to (x1, y1)."""
+        self._touch("touchStart", [(x0, y0)])
+        for i in range(1, steps + 1):
+            f = i / steps
+            self._touch("touchMove", [(x0 + f * (x1 - x0), y0 + f * (y1 - y0))])
+        self._touch("touchEnd", [])
+
+    def reload(self) -> None:
+        """Reload the page (same browser session: ``sessionStorage`` is kept)."""
+        self.evaluate("location.reload(), true")
+        time.sleep(0.3)
+
+    def screenshot_png(self) -> bytes:
+        """The viewport as PNG bytes."""
+        return base64.b64decode(self.send("Page.captureScreenshot", {"format": "png"})["data"])
+
+
+@contextmanager
+def open_page(folder: Path, *, size_px=(1024, 768), query: dict | None = None, timeout_s: float = 120.0,
+              chromium: Path | None = None, page_name: str = "index.html", ready: str | None = None):
+    """Serve ``folder``, open its ``page_name?query`` (the viewer's ``index.html``) in headless
+    Chromium at a CSS viewport of ``size_px`` with touch input, and yield a :class:`Page` once the
+    expression ``ready`` is true (default: the viewer has drawn its first frame,
+    ``document.body.dataset.ready``)."""
+    chromium = chromium or find_chromium()
+    if chromium is None:
+        raise RuntimeError("chromium not found")
+    w, h = size_px
+    to_r, to_w = os.pipe()          # our commands: Chromium reads them on its fd 3
+    from_r, from_w = os.pipe()      # its answers: Chromium writes them on its fd 4
+
+    def child_fds():
+        # in the child, before exec: the two ends onto descriptors 3 and 4 (through copies above
+        # them, in case an end already is 3 or 4); dup2 makes them inheritable
+        import fcntl
+
+        r, w = fcntl.fcntl(to_r, fcntl.F_DUPFD, 10), fcntl.fcntl(from_w, fcntl.F_DUPFD, 10)
+        os.dup2(r, 3)
+        os.dup2(w, 4)
+
+    with serve(Path(folder)) as (base, _), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+        proc = subprocess.Popen([str(chromium), *chromium_flags(Path(prof), w, h), "--remote-debugging-pipe",
+                                 "about:blank"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                close_fds=False, preexec_fn=child_fds)
+        os.close(to_r)
+        os.close(from_w)
+        page = Page(proc, to_w, from_r, timeout_s)
+        try:
+            targets = page.send("Target.getTargets")["targetInfos"]
+            target = next((t["targetId"] for t in targets if t["type"] == "page"), None)
+            if target is None:
+                target = page.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+            page.session = page.send("Target.attachToTarget", {"targetId": target, "flatten": True},
+                                     session=False)["sessionId"]
+            page.send("Page.enable")
+            page.set_viewport(w, h)
+            page.send("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 5})
+            page.send("Page.navigate", {"url": f"{base}/{page_name}?{urlencode(query or {})}"})
+            page.wait_for("document.readyState === 'complete' && "
+                          + (ready or "document.body && document.body.dataset.ready === '1'"))
+            yield page
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            os.close(to_w)
+            os.close(from_r)
 
 
 def image_delta_e00(a_rgb8: np.ndarray, b_rgb8: np.ndarray, display_path: Path | None = None) -> np.ndarray:

@@ -118,3 +118,165 @@ def test_test_mode_results_feed_visual_report(exported, tmp_path, run_cli):
         assert code == 0, err
         st = json.loads(out)
         assert st["responses"] == 8 and st["observers"] == ["O1"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The viewer on a tablet: the page at an iPad's landscape viewport (1024 × 768 CSS px) and a
+# larger one (1180 × 820), driven with emulated touch through the DevTools protocol.
+
+TABLET_VIEWPORTS = [(1024, 768), (1180, 820)]
+
+#: what the page looks like, measured by the browser's layout (CSS px)
+LAYOUT_JS = """(() => {
+  const r = (el) => { const b = el.getBoundingClientRect(); return [b.left, b.top, b.width, b.height]; };
+  const shown = (el) => !!el && el.getClientRects().length > 0 && getComputedStyle(el).visibility !== 'hidden';
+  const doc = document.documentElement;
+  const targets = [...document.querySelectorAll('button, select, input, a')].filter(shown)
+    // a checkbox is tapped through its label
+    .map((el) => ({id: el.id || el.textContent.trim(), in_panel: !!el.closest('#panel'),
+                   rect: r(el.type === 'checkbox' && el.closest('label') ? el.closest('label') : el)}));
+  return {inner: [innerWidth, innerHeight], scroll: [doc.scrollWidth, doc.scrollHeight],
+          body_scroll: [document.body.scrollWidth, document.body.scrollHeight],
+          page_offset: [scrollX, scrollY], canvas: r(document.getElementById('view')),
+          controls_shown: shown(document.getElementById('controls')),
+          panel: r(document.getElementById('panel')), fold: r(document.getElementById('fold')),
+          status: document.getElementById('status').textContent,
+          tilt_label: document.getElementById('tiltval').textContent,
+          canvas_touch_action: getComputedStyle(document.getElementById('view')).touchAction,
+          targets};
+})()"""
+
+
+def _inside(rect, inner) -> bool:
+    x, y, w, h = rect
+    return x >= -0.5 and y >= -0.5 and x + w <= inner[0] + 0.5 and y + h <= inner[1] + 0.5
+
+
+def _centre(rect):
+    x, y, w, h = rect
+    return x + w / 2, y + h / 2
+
+
+def _assert_fits(m, size):
+    assert m["inner"] == list(size)
+    # nothing scrolls: the document is exactly the viewport
+    assert m["scroll"] == list(size) and m["body_scroll"] == list(size), m
+    assert m["page_offset"] == [0, 0]
+    # the view fills the viewport
+    assert [round(v) for v in m["canvas"]] == [0, 0, size[0], size[1]]
+    # every control is on screen and big enough for a finger (44 CSS px, Apple's and WCAG's target)
+    small = [t for t in m["targets"] if t["rect"][2] < 44 - 0.5 or t["rect"][3] < 44 - 0.5]
+    # (the panel scrolls within itself where it is taller than the viewport: its own box is on screen)
+    off = [t for t in m["targets"] if not _inside(t["rect"], size) and not t["in_panel"]]
+    assert _inside(m["panel"], size) or not m["controls_shown"]
+    assert not small, small
+    assert not off, off
+
+
+@pytest.mark.parametrize("size", TABLET_VIEWPORTS, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_tablet_layout_fold_and_touch(exported, size):
+    import hashlib
+    import re
+
+    from lbscene.runtimes.web.browser import open_page
+
+    frame = "document.getElementById('view').toDataURL('image/png')"
+    with open_page(exported, size_px=size, query={"scale": 0.2, "view": "45as0"}) as page:
+        m = page.evaluate(LAYOUT_JS)
+        _assert_fits(m, size)
+        assert m["controls_shown"] and _inside(m["panel"], size) and m["panel"][3] > 100
+        assert m["canvas_touch_action"] == "none"
+        # the render follows the viewport's aspect (the view is not stretched)
+        cw, ch = page.evaluate("[document.getElementById('view').width, document.getElementById('view').height]")
+        assert (cw, ch) == (round(size[0] * 0.2), round(size[1] * 0.2))
+        # angles print as people write them: the 45as0 geometry of the tube booth
+        assert "illumination 45°, viewing 45°, aspecular 0°" in m["status"], m["status"]
+        assert not re.search(r"\d\.\d{2,}°", m["status"]) and m["tilt_label"] == "0°"
+        # … also where the realised geometry carries float noise (a booth's computed angles)
+        page.evaluate("(() => { const r = LBSCENE_DATA.lightings[0].views.find((v) => v.name === '45as0').realised;"
+                      " r.illumination_deg = 44.99999999; r.viewing_deg = 45.00000001; r.aspecular_deg = -1e-9;"
+                      " const r2 = LBSCENE_DATA.lightings[0].views.find((v) => v.name === '45as15').realised;"
+                      " r2.aspecular_deg = 14.96; return true; })()")
+        buttons = {t["id"]: t["rect"] for t in m["targets"]}
+        page.tap(*_centre(buttons["next"]))
+        page.wait_for("document.getElementById('status').textContent.includes('45as15')")
+        assert "aspecular 15°" in page.evaluate("document.getElementById('status').textContent")
+        page.tap(*_centre(buttons["prev"]))
+        page.wait_for("document.getElementById('status').textContent.includes('45as0')")
+        status = page.evaluate("document.getElementById('status').textContent")
+        assert "illumination 45°, viewing 45°, aspecular 0°" in status, status
+
+        # a finger dragging across the view tilts the sample: the label and the picture change
+        before = hashlib.sha256(page.evaluate(frame).encode()).hexdigest()
+        x, y = size[0] * 0.5, size[1] * 0.6
+        page.drag(x, y, x + size[0] / 5, y)
+        page.wait_for("document.getElementById('tiltval').textContent !== '0°'")
+        tilt = page.evaluate("document.getElementById('tiltval').textContent")
+        assert re.fullmatch(r"-?\d+(\.5)?°", tilt) and tilt != "0°", tilt
+        # a fifth of the width is a fifth of the −30°…30° range
+        assert tilt == "12°", tilt
+        page.wait_for(f"(() => {{ const d = {frame}; return d.length > 0 && d; }})()")
+        after = hashlib.sha256(page.evaluate(frame).encode()).hexdigest()
+        assert after != before
+        assert "tilt 12°" in page.evaluate("document.getElementById('status').textContent")
+        # a double tap levels it again
+        page.tap(x, y)
+        page.tap(x, y)
+        page.wait_for("document.getElementById('tiltval').textContent === '0°'")
+
+        # a tap on the button folds the controls away; the view stays full screen
+        page.tap(*_centre(m["fold"]))
+        folded = page.evaluate(LAYOUT_JS)
+        assert not folded["controls_shown"]
+        _assert_fits(folded, size)
+        assert page.evaluate("document.getElementById('fold').getAttribute('aria-expanded')") == "false"
+        # remembered for the browser session
+        page.reload()
+        page.wait_for("document.body && document.body.dataset.ready === '1'")
+        again = page.evaluate(LAYOUT_JS)
+        assert not again["controls_shown"]
+        page.tap(*_centre(again["fold"]))
+        assert page.evaluate(LAYOUT_JS)["controls_shown"]
+
+
+@pytest.mark.parametrize("size", TABLET_VIEWPORTS, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_tablet_visual_test_mode(exported, size):
+    from lbscene.runtimes.web.browser import open_page
+
+    with open_page(exported, size_px=size, query={"scale": 0.2}) as page:
+        m = page.evaluate(LAYOUT_JS)
+        _assert_fits(m, size)
+        start = page.evaluate("(() => { const b = document.getElementById('starttest'); "
+                              "b.scrollIntoView({block: 'nearest'}); const r = b.getBoundingClientRect(); "
+                              "return [r.left, r.top, r.width, r.height]; })()")
+        assert _inside(start, size)
+        page.tap(*_centre(start))
+        page.wait_for("document.body.classList.contains('testing')")
+        t = page.evaluate(LAYOUT_JS)
+        _assert_fits(t, size)
+        # the observer sees the sample and the score buttons, not the case's name
+        assert not t["controls_shown"]
+        scores = [x for x in t["targets"] if x["id"] in ("1", "1.5", "2", "2.5", "3", "3.5", "4", "4.5", "5")]
+        assert len(scores) == 9
+        trial = page.evaluate("document.getElementById('trial').textContent")
+        assert "case 1 of 8" in trial
+        page.tap(*_centre(next(x["rect"] for x in scores if x["id"] == "4")))
+        page.wait_for("document.getElementById('trial').textContent.includes('case 2 of 8')")
+
+
+@pytest.mark.parametrize("size", TABLET_VIEWPORTS, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_tablet_visual_report_page(exported, tmp_path_factory, size, run_cli):
+    """The visual test's report reads on the tablet too: it scrolls down, never sideways."""
+    from lbscene.runtimes.web.browser import open_page
+
+    d = tmp_path_factory.mktemp("report")
+    rep = run_viewer(exported, size_px=(96, 72), bench=0, want="visual_results",
+                     extra={"test": 1, "observer": "O1", "answers": "5,4,3.5,2"})
+    (d / "o1.json").write_text(json.dumps(rep.raw["results"]))
+    code, _, err = run_cli("visual-report", d / "o1.json", "--session", SESSION, "--model-de",
+                           exported / "model-delta-e00.csv", "--report", d / "report.html")
+    assert code == 0, err
+    with open_page(d, size_px=size, page_name="report.html", ready="document.images.length > 0") as page:
+        w, sw = page.evaluate("[innerWidth, document.documentElement.scrollWidth]")
+        assert (w, sw) == (size[0], size[0])
+        assert page.evaluate("document.querySelector('meta[name=viewport]') !== null")

@@ -6,10 +6,17 @@
 // computes the camera (the rule of runtimes/scene.py: look_at + OpenGL perspective) and the
 // sample's tilt (binding `sample.model`).
 //
+// The page is a full-screen app: the canvas fills the viewport at any size and follows it when
+// the window turns or resizes (render size = viewport × device pixel ratio, at most 2, and at most
+// the export's pixel count); the controls float over it and fold away (remembered for the browser
+// session); a horizontal drag on the view (finger, pen or mouse: pointer events) tilts the sample,
+// a double tap levels it.
+//
 // URL parameters (all optional): lighting, view, sample, display (names or indices), tilt
-// (degrees), size (WxH), shot=1 (canvas only, at the page origin), bench=N (render N frames
-// and report their times), report=PATH (POST a JSON report there: frame times and the
-// canvas's pixels), test=1 (start the session's test mode).
+// (degrees), size (WxH: a fixed render size instead of the viewport's), scale (render size as a
+// fraction of the viewport's CSS size), shot=1 (canvas only, at the page origin), bench=N
+// (render N frames and report their times), report=PATH (POST a JSON report there: frame times
+// and the canvas's pixels), test=1 (start the session's test mode).
 (function () {
   'use strict';
   const D = window.LBSCENE_DATA;
@@ -69,6 +76,12 @@
   }
   const columnMajor = (m) => { const o = new Float32Array(16); for (let c = 0; c < 4; c++) for (let r = 0; r < 4; r++) o[c * 4 + r] = m[r][c]; return o; };
 
+  // ------------------------------------------------------------------ formatting
+  // an angle as people write it: whole degrees when it is one, else one decimal (45°, 22.5°)
+  const fmtDeg = (x) => (Number.isFinite(Number(x)) ? `${Number(Number(x).toFixed(1))}°` : '—');
+  const TILT_MAX_DEG = 30;
+  function clampTilt(t) { return Math.max(-TILT_MAX_DEG, Math.min(TILT_MAX_DEG, Math.round(t * 2) / 2)); }
+
   // ------------------------------------------------------------------ state
   const state = { lighting: 0, view: 0, sample: 0, display: 0, tilt: 0, size: (D.size_px || [1024, 768]).slice() };
   function pick(list, key, fallback) {
@@ -85,11 +98,24 @@
   state.view = pick(views0, 'view', Math.max(0, views0.findIndex((v) => v.name === init.view)));
   state.sample = pick(D.samples, 'sample', 0);
   state.display = pick(D.displays, 'display', 0);
-  if (params.get('tilt')) state.tilt = parseFloat(params.get('tilt')) || 0;
+  if (params.get('tilt')) state.tilt = clampTilt(parseFloat(params.get('tilt')) || 0);
+  let fixedSize = null;
   if (params.get('size')) {
     const m = /^(\d+)x(\d+)$/.exec(params.get('size'));
-    if (m) state.size = [parseInt(m[1], 10), parseInt(m[2], 10)];
+    if (m) fixedSize = [parseInt(m[1], 10), parseInt(m[2], 10)];
   }
+  const scaleParam = parseFloat(params.get('scale') || '');
+  const maxPixels = state.size[0] * state.size[1];
+  // the render size: fixed by ?size, else the viewport's (CSS px × ?scale, or × the device pixel
+  // ratio up to 2, no more pixels than the export was made for), so the view keeps its aspect
+  function viewportSize() {
+    if (fixedSize) return fixedSize.slice();
+    const w = Math.max(1, window.innerWidth), h = Math.max(1, window.innerHeight);
+    let k = scaleParam > 0 ? scaleParam : Math.min(window.devicePixelRatio || 1, 2);
+    if (!(scaleParam > 0)) k = Math.min(k, Math.sqrt(maxPixels / (w * h)));
+    return [Math.max(16, Math.round(w * k)), Math.max(16, Math.round(h * k))];
+  }
+  state.size = viewportSize();
   const shot = params.get('shot') === '1';
   if (shot) document.body.classList.add('shot');
 
@@ -187,8 +213,9 @@
     const r = V.realised || {};
     $('frame').textContent = `frame ${frameMs[frameMs.length - 1].toFixed(1)} ms (median of ${frameMs.length}: ${median(frameMs).toFixed(1)} ms` +
       (gpuMs !== null ? `, GPU ${gpuMs.toFixed(1)} ms` : '') + `) · ${state.size[0]}×${state.size[1]} · ${glRenderer}`;
-    $('status').textContent = `${D.booth} · ${L.name} (${L.diffuse} diffuse) · ${V.name}: illumination ${r.illumination_deg}°, ` +
-      `viewing ${r.viewing_deg}°, aspecular ${r.aspecular_deg}° · sample ${D.samples[state.sample].name} · ` +
+    $('status').textContent = `${D.booth} · ${L.name} (${L.diffuse} diffuse) · ${V.name}: illumination ${fmtDeg(r.illumination_deg)}, ` +
+      `viewing ${fmtDeg(r.viewing_deg)}, aspecular ${fmtDeg(r.aspecular_deg)}` +
+      (state.tilt ? `, tilt ${fmtDeg(state.tilt)}` : '') + ` · sample ${D.samples[state.sample].name} · ` +
       `${disp.sample_illuminance_lx.toFixed(0)} lx · display ${D.displays[state.display].name}`;
   }
 
@@ -204,7 +231,7 @@
     fill($('sample'), D.samples, state.sample);
     fill($('display'), D.displays, state.display);
     $('tilt').value = state.tilt;
-    $('tiltval').textContent = `${state.tilt.toFixed(1)}°`;
+    $('tiltval').textContent = fmtDeg(state.tilt);
   }
   function onChange(key, el, parse) {
     el.addEventListener('input', () => { state[key] = parse(el.value); if (key === 'lighting') state.view = Math.min(state.view, D.lightings[state.lighting].views.length - 1); syncControls(); render(); });
@@ -213,10 +240,62 @@
   onChange('view', $('viewsel'), Number);
   onChange('sample', $('sample'), Number);
   onChange('display', $('display'), Number);
-  onChange('tilt', $('tilt'), parseFloat);
+  onChange('tilt', $('tilt'), (v) => clampTilt(parseFloat(v)));
   $('prev').addEventListener('click', () => { const n = D.lightings[state.lighting].views.length; state.view = (state.view + n - 1) % n; syncControls(); render(); });
   $('next').addEventListener('click', () => { const n = D.lightings[state.lighting].views.length; state.view = (state.view + 1) % n; syncControls(); render(); });
   let running = false;
+  // fold the controls away (the view alone); remembered for this browser session
+  const FOLD_KEY = 'lbscene.viewer.folded';
+  function setFolded(folded) {
+    document.body.classList.toggle('folded', folded);
+    $('fold').textContent = folded ? 'Controls' : 'Hide controls';
+    $('fold').setAttribute('aria-expanded', String(!folded));
+    try { sessionStorage.setItem(FOLD_KEY, folded ? '1' : '0'); } catch (e) { /* storage refused: not remembered */ }
+  }
+  let folded0 = false;
+  try { folded0 = sessionStorage.getItem(FOLD_KEY) === '1'; } catch (e) { /* storage refused */ }
+  setFolded(folded0);
+  $('fold').addEventListener('click', () => setFolded(!document.body.classList.contains('folded')));
+
+  // touch, pen and mouse on the view: a horizontal drag tilts the sample (the width of the view
+  // is the whole tilt range), a double tap levels it; the page itself never pans (touch-action)
+  const drag = { id: null, x0: 0, tilt0: 0, moved: false, lastTap: 0 };
+  let pending = false;
+  function renderSoon() {
+    if (pending) return;
+    pending = true;
+    requestAnimationFrame(() => { pending = false; render(); });
+  }
+  canvas.addEventListener('pointerdown', (e) => {
+    if (T.on || drag.id !== null) return;
+    drag.id = e.pointerId; drag.x0 = e.clientX; drag.tilt0 = state.tilt; drag.moved = false;
+    try { canvas.setPointerCapture(e.pointerId); } catch (err) { /* synthetic pointer */ }
+    e.preventDefault();
+  });
+  canvas.addEventListener('pointermove', (e) => {
+    if (e.pointerId !== drag.id) return;
+    const dx = e.clientX - drag.x0;
+    if (Math.abs(dx) < 4 && !drag.moved) return;
+    drag.moved = true;
+    const t = clampTilt(drag.tilt0 + dx / Math.max(1, canvas.clientWidth) * 2 * TILT_MAX_DEG);
+    if (t !== state.tilt) { state.tilt = t; syncControls(); renderSoon(); }
+  });
+  const endDrag = (e) => {
+    if (e.pointerId !== drag.id) return;
+    drag.id = null;
+    if (drag.moved || e.type === 'pointercancel') return;
+    const now = performance.now();
+    if (now - drag.lastTap < 350) { drag.lastTap = 0; state.tilt = 0; syncControls(); renderSoon(); } else drag.lastTap = now;
+  };
+  canvas.addEventListener('pointerup', endDrag);
+  canvas.addEventListener('pointercancel', endDrag);
+
+  // the viewport turned or resized: render at its new size
+  window.addEventListener('resize', () => {
+    const s = viewportSize();
+    if (s[0] !== state.size[0] || s[1] !== state.size[1]) { state.size = s; renderSoon(); }
+  });
+
   $('animate').addEventListener('change', (e) => {
     running = e.target.checked;
     const loop = () => { if (!running) return; render(); requestAnimationFrame(loop); };
@@ -285,8 +364,8 @@
     const ses = D.session;
     if (!ses) { $('testpanel').hidden = true; return; }
     fill($('observer'), ses.observers.map((o) => ({ name: o.id })), 0);
-    $('observer').value = ses.observers[0].id;
     $('observer').querySelectorAll('option').forEach((o) => { o.value = o.textContent; });
+    $('observer').value = ses.observers[0].id;   // after the options carry the ids as values
     $('starttest').addEventListener('click', startTest);
     const box = $('scores');
     box.innerHTML = '';
@@ -295,6 +374,7 @@
       for (let v = r.min; v <= r.max + 1e-9; v += r.step) {
         const b = document.createElement('button');
         b.textContent = Number(v.toFixed(2)).toString();
+        b.type = 'button';
         b.dataset.score = v;
         b.addEventListener('click', () => T.on && answer(Number(v.toFixed(2))));
         box.appendChild(b);
