@@ -22,14 +22,14 @@ from .base import Document, Identifier, StrictModel
 from .booth import GeometryName
 from .refs import FileRef
 
-__all__ = ["VisualSession", "Observer", "ResponseScale", "TrialOrder", "ATTRIBUTES"]
+__all__ = ["VisualSession", "SessionObserver", "ResponseScale", "TrialOrder", "ATTRIBUTES"]
 
 #: What an observer judges in a case: the colour, or a texture attribute of an effect coating
 #: (sparkle under the booth's lamp, graininess: the light/dark pattern).
 ATTRIBUTES = ("colour", "sparkle", "graininess")
 
 
-class Observer(StrictModel):
+class SessionObserver(StrictModel):
     """One observer (no personal data is needed: an id, optionally notes such as the
     colour-vision test passed)."""
 
@@ -73,7 +73,7 @@ class VisualSession(Document):
     render_config: FileRef | None = Field(
         None, description="Render configuration whose booth, display and camera the viewer uses "
                           "(`lbscene export-web --session` exports it when no other source is given).")
-    observers: list[Observer] = Field(min_length=1)
+    observers: list[SessionObserver] = Field(min_length=1)
     samples: list[FileRef] = Field(min_length=1, description="Sample documents.")
     geometries: list[GeometryName] = Field(min_length=1, description="Viewing geometries of the booth.")
     lightings: list[str] = Field(min_length=1, description="Lighting configurations of the booth.")

@@ -44,6 +44,7 @@ DOCUMENTS = [
     ("display", "lbscene.schemas.display", "Display", "displays/*.yaml"),
     ("measurement_set", "lbscene.schemas.measurement", "MeasurementSet", "examples/*/measurements.yaml"),
     ("render_config", "lbscene.schemas.render_config", "RenderConfig", "examples/render/*.yaml"),
+    ("visual_session", "lbscene.schemas.visual_session", "VisualSession", "examples/render/session-*.yaml"),
 ]
 
 

@@ -104,3 +104,187 @@ def test_readme_points_at_the_docs_and_contributing():
     readme = (REPO / "README.md").read_text()
     assert "make docs" in readme and "CONTRIBUTING.md" in readme
     assert not (REPO / "docs" / "HELPERS.md").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# The pages a new user follows: the commands they show exist and (where cheap) run against the
+# shipped examples; the example booth validates and renders; the figures are made by the current code.
+
+DOCS = REPO / "docs"
+EXAMPLE = REPO / "examples" / "booth-from-scratch"
+
+
+def _shown_commands() -> list[tuple[str, str]]:
+    """Every ``lbscene …`` line of a ``sh`` block in the docs and the README: ``(page, command)``."""
+    out = []
+    for page in sorted(DOCS.glob("*.md")) + [REPO / "README.md"]:
+        for block in re.findall(r"^```sh\n(.*?)^```", page.read_text(), flags=re.M | re.S):
+            for line in re.sub(r"\\\n\s*", " ", block).splitlines():   # continuation lines joined
+                line = line.split("  #")[0].strip()
+                if line.startswith("lbscene "):
+                    out.append((page.name, line))
+    return out
+
+
+def test_every_command_the_docs_show_exists_with_its_options():
+    import shlex
+
+    import typer
+
+    from lbscene.cli import app
+
+    root = typer.main.get_command(app)
+    shown = _shown_commands()
+    assert len(shown) >= 25
+    bad = []
+    for page, line in shown:
+        words = shlex.split(line)[1:]
+        if words[0].startswith("-"):
+            continue
+        cmd = root.commands.get(words[0])
+        if cmd is None:
+            bad.append(f"{page}: {line}: no command {words[0]!r}")
+            continue
+        opts = {o for p in cmd.params for o in getattr(p, "opts", []) + getattr(p, "secondary_opts", [])}
+        for w in words[1:]:
+            name = w.split("=")[0]
+            if name.startswith("-") and name not in opts:
+                bad.append(f"{page}: {line}: {words[0]} has no option {name}")
+    assert not bad, "\n".join(bad)
+
+
+def test_cheap_commands_the_docs_show_run_on_the_shipped_files(run_cli):
+    """``validate-config`` lines on shipped files: exit 0, no error (placeholders such as MY-BOOTH
+    are left out)."""
+    import shlex
+
+    ran = 0
+    for page, line in _shown_commands():
+        words = shlex.split(line)[1:]
+        if words[0] != "validate-config" or any(w.isupper() or "MY" in w or "my-" in w for w in words[1:]):
+            continue
+        if not all((REPO / w).exists() for w in words[1:] if not w.startswith("-")):
+            continue
+        code, out, err = run_cli(*words, cwd=REPO)
+        assert code == 0, f"{page}: {line}\n{out}{err}"
+        assert " 0 error(s)" in out + err, f"{page}: {line}\n{out}{err}"
+        ran += 1
+    assert ran >= 3
+
+
+def test_getting_started_says_how_to_put_lbscene_on_the_path():
+    page = (DOCS / "getting-started.md").read_text()
+    assert "source .venv/bin/activate" in page and ".venv/bin/lbscene" in page
+    assert (REPO / "scripts" / "demo.sh").read_text().count(".venv/bin/lbscene") >= 1
+
+
+def test_booth_from_scratch_page_shows_the_example_files_verbatim():
+    page = (DOCS / "booth-from-scratch.md").read_text()
+    for name in ("booth.yaml", "sample-grey.yaml", "render.yaml"):
+        assert f'--8<-- "examples/booth-from-scratch/{name}"' in page
+        assert (EXAMPLE / name).is_file()
+
+
+def test_booth_from_scratch_validates_and_renders(run_cli, tmp_path):
+    import json
+
+    from PIL import Image
+
+    code, out, err = run_cli("validate-config", EXAMPLE, cwd=REPO)
+    assert code == 0 and "3 files checked: 0 error(s), 0 warning(s)" in out + err, out + err
+    png = tmp_path / "scratch.png"
+    code, out, err = run_cli("render", EXAMPLE / "render.yaml", "-o", png, "--size", "48x36", "--format", "json")
+    if code != 0 and "LB6" in err and "OpenGL" in err:
+        pytest.skip(f"no OpenGL context: {err}")
+    assert code == 0, err
+    with Image.open(png) as im:
+        assert im.size == (48, 36)
+    # the illuminance the page quotes is the one the render reports
+    quoted = float(re.search(r"about (\d+) lx", (DOCS / "booth-from-scratch.md").read_text()).group(1))
+    lx = json.loads(out)["views"][0]["sample_illuminance_lx"] if "views" in json.loads(out) else None
+    if lx is None:
+        lx = float(re.search(r'"sample_illuminance_lx": ([0-9.]+)', out).group(1))
+    assert abs(lx - quoted) <= 0.02 * quoted, (lx, quoted)
+
+
+def test_booth_from_scratch_typo_gives_the_diagnostic_the_page_shows(run_cli, tmp_path):
+    import shutil
+
+    booth = tmp_path / "booth-from-scratch"
+    shutil.copytree(EXAMPLE, booth)
+    text = (booth / "booth.yaml").read_text()
+    (booth / "booth.yaml").write_text(text.replace("type: luminous_flux_lm,", "type: luminous_flux,"))
+    code, out, err = run_cli("validate-config", booth / "booth.yaml")
+    assert code == 2
+    page = (DOCS / "booth-from-scratch.md").read_text()
+    for line in (out + err).splitlines():
+        if "error LB105" in line:
+            shown = "examples/booth-from-scratch/booth.yaml:" + line.split("booth.yaml:", 1)[1]
+            head = shown[:shown.index("Input tag") + len("Input tag 'luminous_flux'")]
+            assert head in page, head
+    assert "1 file checked: 2 error(s), 0 warning(s)" in out + err
+    assert "1 file checked: 2 error(s), 0 warning(s)" in page
+
+
+def test_docs_pages_for_viewer_visual_test_and_interop():
+    nav = (REPO / "mkdocs.yml").read_text()
+    for page in ("web-viewer.md", "visual-test.md", "interop.md", "booth-from-scratch.md", "conformance.md"):
+        assert page in nav and (DOCS / page).is_file()
+    interop = (DOCS / "interop.md").read_text()
+    assert "](blender.md)" in interop and "lbscene export-mitsuba" in interop
+    viewer = (DOCS / "web-viewer.md").read_text()
+    assert "1024 × 768" in viewer and "44" in viewer
+    conf = (DOCS / "conformance.md").read_text()
+    # the page covers every top-level key of the JSON output and every ISO 3664 check
+    for key in ("booth_file", "ir_hash", "viewing_area", "measured_lighting", "lightings[]", "verdict_counts",
+                "checks", "requirement", "reference"):
+        assert f"`{key}`" in conf, key
+    from lbscene.engine.conformance.standards import STANDARD_TITLES
+
+    assert "ISO_3664_P1" in STANDARD_TITLES
+    for check in ("illuminance", "uniformity", "chromaticity", "colour_rendering", "special_indices", "surround",
+                  "uv_content", "metamerism_visible", "metamerism_uv"):
+        assert f"| `{check}` |" in conf, check
+
+
+def test_file_reference_has_the_visual_session(gen_docs):
+    sections = _sections(gen_docs.files_page())
+    assert "VisualSession" in sections and "| `observers` |" in sections["VisualSession"]
+
+
+def _make_figures():
+    spec = importlib.util.spec_from_file_location("make_figures", REPO / "scripts" / "make_figures.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_figures_are_made_from_the_current_code():
+    """The viewer figures carry the digest of what they were made from; a change to the page or the
+    example booth without ``scripts/make_figures.py`` fails here."""
+    mf = _make_figures()
+    assert mf.stale() == [], "run .venv/bin/python scripts/make_figures.py"
+    for name in mf.FIGURES:
+        assert f"images/{name}" in "".join(p.read_text() for p in DOCS.glob("*.md")), name
+
+
+def test_figure_stamp_covers_the_page_and_the_example():
+    mf = _make_figures()
+    st = mf.read_stamp(DOCS / "images" / mf.FIGURES[0])
+    for f in ("runtimes/web/assets/viewer.css", "runtimes/web/assets/viewer.js", "runtimes/web/assets/index.html",
+              "examples/booth-from-scratch/booth.yaml", "scripts/make_figures.py"):
+        assert f in st["inputs"], f
+    assert mf.digest_of(st["inputs"]) == st["digest"]
+    changed = dict(st["inputs"], **{"runtimes/web/assets/viewer.css": "0" * 64})
+    assert mf.digest_of(changed) != st["digest"]
+
+
+@pytest.mark.slow
+def test_make_figures_runs_on_a_small_viewport(tmp_path):
+    from lbscene.runtimes.web.browser import find_chromium
+
+    if find_chromium() is None:
+        pytest.skip("chromium is not installed (scripts/install-test-deps.sh installs it)")
+    mf = _make_figures()
+    assert mf.main(["--out", str(tmp_path), "--size", "320x240", "--scale", "0.25"]) == 0
+    assert mf.stale(tmp_path) == []
