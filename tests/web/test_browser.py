@@ -280,3 +280,17 @@ def test_tablet_visual_report_page(exported, tmp_path_factory, size, run_cli):
         w, sw = page.evaluate("[innerWidth, document.documentElement.scrollWidth]")
         assert (w, sw) == (size[0], size[0])
         assert page.evaluate("document.querySelector('meta[name=viewport]') !== null")
+
+
+@pytest.mark.parametrize("size", [(390, 844), (1920, 1080)], ids=lambda s: f"{s[0]}x{s[1]}")
+def test_other_viewports_fit_too(exported, size):
+    """A phone upright and a desktop window: the same full-screen page, the controls on screen."""
+    from lbscene.runtimes.web.browser import open_page
+
+    with open_page(exported, size_px=size, query={"scale": 0.1}) as page:
+        m = page.evaluate(LAYOUT_JS)
+        _assert_fits(m, size)
+        assert m["controls_shown"]
+        fold = page.evaluate(LAYOUT_JS)["fold"]
+        page.tap(*_centre(fold))
+        _assert_fits(page.evaluate(LAYOUT_JS), size)
