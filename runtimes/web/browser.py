@@ -281,10 +281,12 @@ class Page:
             self._touch("touchMove", [(x0 + f * (x1 - x0), y0 + f * (y1 - y0))])
         self._touch("touchEnd", [])
 
-    def reload(self) -> None:
-        """Reload the page (same browser session: ``sessionStorage`` is kept)."""
+    def reload(self, ready: str = "document.body && document.body.dataset.ready === '1'") -> None:
+        """Reload the page (same browser session: ``sessionStorage`` is kept) and wait until the new
+        document's ``ready`` expression is true."""
+        self.evaluate("window.__lbsceneOld = true")
         self.evaluate("location.reload(), true")
-        time.sleep(0.3)
+        self.wait_for(f"!window.__lbsceneOld && document.readyState === 'complete' && ({ready})")
 
     def screenshot_png(self) -> bytes:
         """The viewport as PNG bytes."""
