@@ -180,7 +180,8 @@ def register(app: typer.Typer) -> None:
         sample: Optional[List[Path]] = typer.Option(None, "--sample", help="Extra sample documents."),
         display: Optional[List[str]] = typer.Option(
             None, "--display", help="Extra display documents (or builtin:srgb); the sRGB reference is always in."),
-        size: Optional[str] = typer.Option(None, "--size", help="Canvas WIDTHxHEIGHT in pixels (16..8192 each)."),
+        size: Optional[str] = typer.Option(None, "--size", help="WIDTHxHEIGHT in pixels (16..8192 each): the "
+                                          "most pixels the viewer draws (it takes the screen's shape)."),
         session: Optional[Path] = typer.Option(None, "--session", help="Visual-test session (kind: "
                                                "visual_session): adds its cases and the viewer's test mode."),
         max_mb: float = typer.Option(DEFAULT_MAX_MB, "--max-mb", help="Refuse exports whose data exceed this."),
