@@ -1,0 +1,125 @@
+"""Run in a separate Python process with bpy: open a ``.blend`` written by ``lbscene export-blender``,
+switch one lighting on, put a small white Lambertian probe at a point and render it with Cycles from
+above; or print what the file holds.
+
+``render``: prints ``PROBE {"illuminance_lx": …, "rgb_radiance": […]}``: E = 683 lm/W · π · Y(L)
+with L the probe's radiance (albedo 1) and Y the Rec. 709 luminance of Blender's linear RGB — the
+683 lm/W convention of Blender's watts.
+
+``inspect``: prints ``FILE {…}``: per object its type, collection, material names, vertices (m),
+light data and the emission colour of its material, read back from the file.
+
+Usage: python blend_probe.py render FILE LIGHTING X_MM Y_MM Z_MM SAMPLES
+       python blend_probe.py inspect FILE
+"""
+
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+REC709_Y = np.array([0.2126729, 0.7151522, 0.0721750])
+
+
+def _emission(mat):
+    if mat is None or mat.node_tree is None:
+        return None
+    for n in mat.node_tree.nodes:
+        if n.bl_idname == "ShaderNodeEmission":
+            return list(n.inputs["Color"].default_value)[:3]
+    return None
+
+
+def inspect(path):
+    bpy.ops.wm.open_mainfile(filepath=path)
+    sc = bpy.context.scene
+    objs = {}
+    for obj in sc.objects:
+        d = {"type": obj.type, "collections": [c.name for c in obj.users_collection],
+             "props": {k: obj[k] for k in obj.keys() if isinstance(obj[k], (str, int, float))},
+             "visible_camera": obj.visible_camera}
+        if obj.type == "MESH":
+            mw = obj.matrix_world
+            d["vertices_m"] = [list(mw @ v.co) for v in obj.data.vertices]
+            d["materials"] = [m.name if m else None for m in obj.data.materials]
+            polys = []
+            for p in obj.data.polygons:
+                polys.append([list(mw @ obj.data.vertices[i].co) for i in p.vertices])
+            d["area_m2"] = float(sum(p.area for p in obj.data.polygons))
+            d["emission_rgb"] = _emission(obj.data.materials[0] if obj.data.materials else None)
+            if d["emission_rgb"] is None and obj.data.materials and obj.data.materials[0]:
+                d["node_types"] = sorted({n.bl_idname for n in obj.data.materials[0].node_tree.nodes})
+        elif obj.type == "LIGHT":
+            ld = obj.data
+            d["light"] = {"type": ld.type, "energy_W": ld.energy, "radius_m": ld.shadow_soft_size}
+            d["emission_rgb"] = _emission(ld) if ld.node_tree is not None else None
+            d["location_m"] = list(obj.matrix_world.translation)
+        elif obj.type == "CAMERA":
+            d["camera"] = {"angle_x": obj.data.angle_x, "angle_y": obj.data.angle_y,
+                           "sensor_fit": obj.data.sensor_fit, "location_m": list(obj.matrix_world.translation),
+                           "forward": list(obj.matrix_world.to_3x3() @ __import__("mathutils").Vector((0, 0, -1)))}
+        objs[obj.name] = d
+    layer = {c.name: c.exclude for c in sc.view_layers[0].layer_collection.children}
+    print("FILE " + json.dumps({"objects": objs, "excluded": layer, "camera": sc.camera.name if sc.camera else None,
+                                "resolution": [sc.render.resolution_x, sc.render.resolution_y],
+                                "props": {k: sc[k] for k in sc.keys() if isinstance(sc[k], str)}}))
+
+
+def render(path, lighting, x_mm, y_mm, z_mm, samples):
+    bpy.ops.wm.open_mainfile(filepath=path)
+    sc = bpy.context.scene
+    for lc in sc.view_layers[0].layer_collection.children:
+        if lc.name.startswith("lighting "):
+            lc.exclude = lc.name != f"lighting {lighting}"
+    c = sc.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.seed = 1
+    c.use_denoising = False
+    c.use_adaptive_sampling = False
+    m = 1e-3
+    bpy.ops.mesh.primitive_plane_add(size=0.004, location=(x_mm * m, y_mm * m, z_mm * m + 0.0005))
+    probe = bpy.context.active_object
+    mat = bpy.data.materials.new("probe")
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    mat.node_tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
+    probe.data.materials.append(mat)
+    probe.visible_shadow = False
+    probe.visible_diffuse = False
+    probe.visible_glossy = False
+    cam = bpy.data.cameras.new("probe_camera")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 0.002
+    cam.clip_start = 0.001
+    cam.clip_end = 1.0
+    cam_obj = bpy.data.objects.new("probe_camera", cam)
+    sc.collection.objects.link(cam_obj)
+    cam_obj.location = (x_mm * m, y_mm * m, z_mm * m + 0.003)
+    sc.camera = cam_obj
+    sc.render.resolution_x = sc.render.resolution_y = 2
+    sc.view_settings.view_transform = "Raw"
+    sc.render.use_compositing = False
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_depth = "32"
+    with tempfile.TemporaryDirectory() as d:
+        sc.render.filepath = str(Path(d) / "probe.exr")
+        bpy.ops.render.render(write_still=True)
+        img = bpy.data.images.load(sc.render.filepath)
+        px = np.array(img.pixels[:], float).reshape(-1, 4)[:, :3].mean(axis=0)
+    lum = float(REC709_Y @ px)
+    print("PROBE " + json.dumps({"illuminance_lx": 683.0 * math.pi * lum, "rgb_radiance": px.tolist()}))
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "inspect":
+        inspect(sys.argv[2])
+    else:
+        render(sys.argv[2], sys.argv[3], *map(float, sys.argv[4:7]), int(sys.argv[7]))
