@@ -355,6 +355,10 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
         adopt(coll, before_o, before_c)
         for obj in [o for o in bpy.data.objects if o.name not in before_o]:
             tag(obj, name)
+        # the next lighting makes its own shadow-link lists (its own objects block its mirror images)
+        for bc in bpy.data.collections:
+            if bc.name.startswith("blockers."):
+                bc.name = f"{name}/{bc.name}"[:63]
         for mat in [m for m in bpy.data.materials if m.name not in before_m]:
             if "/" not in mat.name:
                 mat.name = f"{name}/{mat.name}"[:63]

@@ -446,6 +446,14 @@ def _build(ir: SceneIR, lighting: str | None):
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for t in tris for i in t]))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDoubleSidedAttr(True)
+        if o.material is not None and o.material in ir.materials:
+            mat = ir.materials[o.material]
+            mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*adapted_linear_srgb(
+                mat.reflectance.array_1nm, lighting_spectrum_1nm(ir, default)))]))
+            _bind(stage, mesh.GetPrim(), f"/Booth/Materials/{_prim_name(mat.id)}")
+            mesh.GetPrim().CreateAttribute("lbscene:occluder:material", Sdf.ValueTypeNames.Token,
+                                           custom=True).Set(mat.id)
 
     cam = UsdGeom.Camera.Define(stage, "/Booth/Observer")
     _orient_camera(UsdGeom.Xformable(cam.GetPrim()), ir.observer.position_mm, ir.observer.look_at_mm)

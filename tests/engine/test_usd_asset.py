@@ -162,6 +162,27 @@ def test_materials_diffuser_and_shaping(splqc_build):
         pytest.fail("the SpectraLight QC's D65 lamps declare a Gaussian profile")
 
 
+def test_every_mesh_has_its_declared_material(splqc_build):
+    """Lint of the stage: every mesh (surfaces, diffuser, the SpectraLight's masks and lamp boxes)
+    is bound to a material, an occluder to the one its booth file declares."""
+    from pxr import Usd, UsdGeom, UsdShade
+
+    out, ir = splqc_build
+    declared = {o.id: o.material for o in ir.occluders}
+    assert declared == {"D65_left_mask": "mask_black", "D65_right_mask": "mask_black",
+                        "D65_left_box_inner": "luminaire_white", "D65_left_box_outer": "luminaire_white",
+                        "D65_right_box_inner": "luminaire_white", "D65_right_box_outer": "luminaire_white"}
+    for path in (out / "scene.usda", out / "lighting" / "D65" / "scene.usda"):
+        stage = Usd.Stage.Open(str(path))
+        unbound = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)
+                   and not UsdShade.MaterialBindingAPI(p).ComputeBoundMaterial()[0]]
+        assert unbound == [], path
+        for oid, mid in declared.items():
+            prim = stage.GetPrimAtPath(f"/Booth/Occluders/{oid}")
+            mat = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+            assert mat.GetPath().name == mid
+
+
 def test_validators_pass_and_can_fail(splqc_build, tmp_path):
     from lbscene.engine.scene.usd_stage import validate_stage
 
