@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import subprocess
 import sys
 import tempfile
@@ -69,6 +68,8 @@ REC709_Y = np.linalg.inv(XYZ_TO_LINEAR_SRGB)[1]
 FRAME_MARGIN = 0.05
 #: width of the camera's image (its height follows the field of view)
 IMAGE_WIDTH_PX = 960
+#: roles of the job's meshes that go into a lighting's collection even where all lightings share them
+LIGHTING_ROLES = ("lamp_body", "mirror")
 #: render samples written into the file (a user's preview; tests set their own)
 DEFAULT_SAMPLES = 128
 
@@ -290,7 +291,10 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
     E, F = band_rgb_matrices(jobs[0].bands)
 
     def common(attr):
-        keys = [{_key(x) for x in getattr(j, attr)} for j in jobs]
+        # what every lighting has alike, except what belongs to a lighting's lamps (the bodies of
+        # the lamps it leaves off, the mirrors behind those it switches on)
+        keys = [{_key(x) for x in getattr(j, attr) if getattr(x, "role", None) not in LIGHTING_ROLES}
+                for j in jobs]
         return set.intersection(*keys)
 
     shared_meshes, shared_sheets = common("meshes"), common("sheets")

@@ -2,14 +2,15 @@
 switch one lighting on, put a small white Lambertian probe at a point and render it with Cycles from
 above; or print what the file holds.
 
-``render``: prints ``PROBE {"illuminance_lx": …, "rgb_radiance": […]}``: E = 683 lm/W · π · Y(L)
+``render``: for each lighting (comma-separated) prints
+``PROBE {"lighting": …, "illuminance_lx": …, "rgb_radiance": […]}``: E = 683 lm/W · π · Y(L)
 with L the probe's radiance (albedo 1) and Y the Rec. 709 luminance of Blender's linear RGB — the
 683 lm/W convention of Blender's watts.
 
 ``inspect``: prints ``FILE {…}``: per object its type, collection, material names, vertices (m),
 light data and the emission colour of its material, read back from the file.
 
-Usage: python blend_probe.py render FILE LIGHTING X_MM Y_MM Z_MM SAMPLES
+Usage: python blend_probe.py render FILE LIGHTING[,LIGHTING…] X_MM Y_MM Z_MM SAMPLES
        python blend_probe.py inspect FILE
 """
 
@@ -51,8 +52,13 @@ def inspect(path):
                 polys.append([list(mw @ obj.data.vertices[i].co) for i in p.vertices])
             d["area_m2"] = float(sum(p.area for p in obj.data.polygons))
             d["emission_rgb"] = _emission(obj.data.materials[0] if obj.data.materials else None)
-            if d["emission_rgb"] is None and obj.data.materials and obj.data.materials[0]:
-                d["node_types"] = sorted({n.bl_idname for n in obj.data.materials[0].node_tree.nodes})
+            if obj.data.materials and obj.data.materials[0]:
+                nodes = obj.data.materials[0].node_tree.nodes
+                d["node_types"] = sorted({n.bl_idname for n in nodes})
+                glossy = [n for n in nodes if n.bl_idname in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")]
+                if glossy:
+                    d["glossy_rgb"] = list(glossy[0].inputs["Color"].default_value)[:3]
+                    d["glossy_roughness"] = glossy[0].inputs["Roughness"].default_value
         elif obj.type == "LIGHT":
             ld = obj.data
             d["light"] = {"type": ld.type, "energy_W": ld.energy, "radius_m": ld.shadow_soft_size}
@@ -69,12 +75,9 @@ def inspect(path):
                                 "props": {k: sc[k] for k in sc.keys() if isinstance(sc[k], str)}}))
 
 
-def render(path, lighting, x_mm, y_mm, z_mm, samples):
+def render(path, lightings, x_mm, y_mm, z_mm, samples):
     bpy.ops.wm.open_mainfile(filepath=path)
     sc = bpy.context.scene
-    for lc in sc.view_layers[0].layer_collection.children:
-        if lc.name.startswith("lighting "):
-            lc.exclude = lc.name != f"lighting {lighting}"
     c = sc.cycles
     c.device = "CPU"
     c.samples = samples
@@ -92,7 +95,7 @@ def render(path, lighting, x_mm, y_mm, z_mm, samples):
     out = nodes.new("ShaderNodeOutputMaterial")
     mat.node_tree.links.new(diffuse.outputs["BSDF"], out.inputs["Surface"])
     probe.data.materials.append(mat)
-    probe.visible_shadow = False
+    probe.visible_shadow = False      # the probe measures; it does not take part in the light
     probe.visible_diffuse = False
     probe.visible_glossy = False
     cam = bpy.data.cameras.new("probe_camera")
@@ -109,13 +112,19 @@ def render(path, lighting, x_mm, y_mm, z_mm, samples):
     sc.render.use_compositing = False
     sc.render.image_settings.file_format = "OPEN_EXR"
     sc.render.image_settings.color_depth = "32"
-    with tempfile.TemporaryDirectory() as d:
-        sc.render.filepath = str(Path(d) / "probe.exr")
-        bpy.ops.render.render(write_still=True)
-        img = bpy.data.images.load(sc.render.filepath)
-        px = np.array(img.pixels[:], float).reshape(-1, 4)[:, :3].mean(axis=0)
-    lum = float(REC709_Y @ px)
-    print("PROBE " + json.dumps({"illuminance_lx": 683.0 * math.pi * lum, "rgb_radiance": px.tolist()}))
+    for lighting in lightings.split(","):
+        for lc in sc.view_layers[0].layer_collection.children:
+            if lc.name.startswith("lighting "):
+                lc.exclude = lc.name != f"lighting {lighting}"
+        with tempfile.TemporaryDirectory() as d:
+            sc.render.filepath = str(Path(d) / "probe.exr")
+            bpy.ops.render.render(write_still=True)
+            img = bpy.data.images.load(sc.render.filepath)
+            px = np.array(img.pixels[:], float).reshape(-1, 4)[:, :3].mean(axis=0)
+            bpy.data.images.remove(img)
+        lum = float(REC709_Y @ px)
+        print("PROBE " + json.dumps({"lighting": lighting, "illuminance_lx": 683.0 * math.pi * lum,
+                                     "rgb_radiance": px.tolist()}))
 
 
 if __name__ == "__main__":

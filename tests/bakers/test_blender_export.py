@@ -12,13 +12,16 @@ occluder with a declared material).  Read back from the file (fast, default suit
 * one collection per lighting, the first on; every mesh has a material, the mask its declared one;
 * the camera's view holds the whole floor, the floor's corners within the margin of the frame.
 
-Rendered (slow): Cycles renders a white probe at the sample in the opened file, and its
-illuminance (683 lm/W · π · Y) is ``lbscene bake``'s at the same point within 5 % for the tube,
-the panel and the bulb, and the ratio between two lightings is the bake's within 3 %.
+Rendered: Cycles renders a white probe at the sample in the opened file, and its illuminance
+(683 lm/W · π · Y) is ``lbscene bake``'s at the same point within 5 % for the tube, the panel and
+the bulb, and the ratios between lightings are the bake's within 3 %.  The bake's values are
+committed data (``tests/data/lamp-shapes-booth/bake-reference.json``, written by
+``bake_reference.py`` beside it); the slow test bakes again and checks that they are current.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -33,54 +36,10 @@ pytestmark = pytest.mark.bake
 HERE = Path(__file__).resolve().parent
 REC709_Y = np.array([0.2126729, 0.7151522, 0.0721750])
 
-BOOTH = """\
-version: 1
-kind: booth
-name: Lamp shapes test booth
-provenance: {status: synthetic, source: "lbscene test suite"}
-interior: {type: box, width_mm: 1200, depth_mm: 800, height_mm: 900}
-materials:
-  white: {type: diffuse, reflectance: {type: constant, value: 0.8}}
-  grey: {type: diffuse, reflectance: {type: constant, value: 0.4}}
-  mask_black: {type: diffuse, reflectance: {type: constant, value: 0.03}}
-surfaces: {floor: white, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: grey}
-lamps:
-  - id: tube
-    type: tube
-    position_mm: [0, -150, 800]
-    axis: [1, 0, 0]
-    length_mm: 590
-    radius_mm: 13
-    spd: {type: cie_illuminant, name: A}
-    output: {type: luminous_flux_lm, value_lm: 1350}
-  - id: panel
-    type: panel
-    position_mm: [0, 150, 850]
-    axis: [1, 0, 0]
-    aim: [0, 0, -1]
-    length_mm: 300
-    width_mm: 200
-    spd: {type: cie_illuminant, name: D65}
-    output: {type: peak_intensity_cd, value_cd: 800}
-  - id: bulb
-    type: bulb
-    position_mm: [250, 0, 700]
-    radius_mm: 20
-    spd: {type: blackbody, cct_K: 3000}
-    output: {type: luminous_flux_lm, value_lm: 1500}
-occluders:
-  - {id: mask, type: panel, centre_mm: [-450, 0, 600], normal: [0, 0, -1], size_mm: [150, 300],
-     u_axis: [1, 0, 0], material: mask_black}
-lighting:
-  tube: {lamps: [tube]}
-  panel: {lamps: [panel]}
-  bulb: {lamps: [bulb]}
-geometries: [{name: 45as45}]
-observer: {type: eye_point, position_mm: [0, -900, 600], look_at_mm: [0, 0, 0]}
-sample_position_mm: [0, 0, 0]
-effects:
-  aperture_occlusion: {}
-"""
+DATA = Path(__file__).resolve().parents[1] / "data" / "lamp-shapes-booth"
+BOOTH = DATA / "booth.yaml"
+#: ``lbscene bake``'s illuminance at the sample, written by ``bake_reference.py`` beside it
+REFERENCE = json.loads((DATA / "bake-reference.json").read_text())
 
 #: datasheet flux of each lamp (lm): the declared lumens, π × the panel's peak candela
 FLUX_LM = {"tube": 1350.0, "panel": math.pi * 800.0, "bulb": 1500.0}
@@ -90,13 +49,18 @@ def _env() -> dict:
     return dict(os.environ, PYTHONPATH="")
 
 
-def _probe(*args) -> str:
+def _run_probe(*args) -> list[dict]:
     res = subprocess.run([sys.executable, str(HERE / "blend_probe.py"), *map(str, args)],
                          capture_output=True, text=True, env=_env(), timeout=600)
     tag = "FILE " if args[0] == "inspect" else "PROBE "
-    line = next((ln for ln in res.stdout.splitlines() if ln.startswith(tag)), None)
-    assert line, res.stdout[-2000:] + res.stderr[-2000:]
-    return json.loads(line[len(tag):])
+    lines = [ln for ln in res.stdout.splitlines() if ln.startswith(tag)]
+    assert lines, res.stdout[-2000:] + res.stderr[-2000:]
+    return [json.loads(ln[len(tag):]) for ln in lines]
+
+
+def _probes(blend: Path, lightings, samples: int) -> list[dict]:
+    """Illuminance at the sample rendered from the file, one entry per lighting."""
+    return _run_probe("render", blend, ",".join(lightings), 0, 0, 0, samples)
 
 
 @pytest.fixture(scope="module")
@@ -105,16 +69,14 @@ def exported(tmp_path_factory):
     import lbscene
 
     root = tmp_path_factory.mktemp("blend")
-    (root / "booth").mkdir()
-    (root / "booth" / "booth.yaml").write_text(BOOTH)
     out = root / "booth.blend"
-    res = lbscene.export_blender(root / "booth", out)
+    res = lbscene.export_blender(BOOTH, out)
     return root, out, res
 
 
 @pytest.fixture(scope="module")
 def contents(exported):
-    return _probe("inspect", exported[1])
+    return _run_probe("inspect", exported[1])[0]
 
 
 def _lamp(contents, lighting):
@@ -184,27 +146,61 @@ def test_the_camera_frames_the_floor_from_the_observer(contents):
     assert max(u.max(), t.max()) > 0.9                      # and fills it, within the margin
 
 
-#: bake samples: the sample's light comes from the bake's environment map, where a thin tube
-#: covers a fraction of a pixel; the preview's 8 samples leave a few % of noise there, 128 under 1 %
-BAKE_SAMPLES = 128
+LIGHTINGS = ("tube", "panel", "bulb")
 
 
-def _bake_lx(booth: Path, lighting: str, out: Path) -> float:
-    r = subprocess.run([sys.executable, "-m", "lbscene", "bake", str(booth), "--lighting", lighting,
-                        "--samples", str(BAKE_SAMPLES), "--out", str(out), "--format", "json"],
-                       capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return json.loads(r.stdout)["bakes"][0]["sample_lx_from_env"]
+def test_cycles_renders_the_bakes_light_from_the_file(exported):
+    """The file's light at the sample is the bake's (tube, panel, bulb), and so are the ratios."""
+    assert REFERENCE["booth_sha256"] == hashlib.sha256(BOOTH.read_bytes()).hexdigest(), \
+        "the booth changed: rerun tests/data/lamp-shapes-booth/bake_reference.py"
+    e_bake = REFERENCE["sample_lx_from_env"]
+    e_blend = {p["lighting"]: p["illuminance_lx"] for p in _probes(exported[1], LIGHTINGS, 512)}
+    for lighting in LIGHTINGS:
+        assert e_blend[lighting] == pytest.approx(e_bake[lighting], rel=0.05), lighting
+    for a, b in (("tube", "panel"), ("bulb", "tube"), ("panel", "bulb")):
+        assert e_blend[a] / e_blend[b] == pytest.approx(e_bake[a] / e_bake[b], rel=0.03), (a, b)
 
 
 @pytest.mark.slow
-def test_cycles_renders_the_bakes_light_from_the_file(exported):
-    """The file's light at the sample is the bake's (tube, panel, bulb), and so are the ratios."""
-    root, blend, _ = exported
-    e_blend, e_bake = {}, {}
-    for lighting in ("tube", "panel", "bulb"):
-        e_blend[lighting] = _probe("render", blend, lighting, 0, 0, 0, 1024)["illuminance_lx"]
-        e_bake[lighting] = _bake_lx(root / "booth", lighting, root / "bakes")
-        assert e_blend[lighting] == pytest.approx(e_bake[lighting], rel=0.05), lighting
-    for a, b in (("tube", "panel"), ("bulb", "tube")):
-        assert e_blend[a] / e_blend[b] == pytest.approx(e_bake[a] / e_bake[b], rel=0.03)
+def test_bake_reference_is_current(tmp_path):
+    """Bake again (a few minutes) and compare with the committed illuminances (noise: < 1 %)."""
+    sys.path.insert(0, str(DATA))
+    try:
+        import bake_reference
+    finally:
+        sys.path.remove(str(DATA))
+    now = bake_reference.reference(tmp_path)
+    assert now["samples"] == REFERENCE["samples"]
+    for lighting in LIGHTINGS:
+        assert now["sample_lx_from_env"][lighting] == pytest.approx(
+            REFERENCE["sample_lx_from_env"][lighting], rel=0.02), lighting
+
+
+@pytest.mark.slow
+def test_spectralight_masks_boxes_and_mirrors(tmp_path):
+    """The SpectraLight QC's D65 lighting: the filter masks and lamp boxes carry their declared
+    materials, each prism mirror is a 130 × 118 mm plate 35 mm above its lamp (the booth file's
+    reflector) with a mirror material of the reflector's ~0.88 reflectance, the lamps are tubes."""
+    pytest.importorskip("bpy")
+    import lbscene
+
+    out = tmp_path / "splqc.blend"
+    res = lbscene.export_blender("xrite-spectralight-qc", out, lightings=["D65"])
+    assert res.lightings == ["D65"]
+    objs = _run_probe("inspect", out)[0]["objects"]
+    for side in ("left", "right"):
+        assert objs[f"occluder.D65_{side}_mask"]["materials"] == ["mat.mask_black"]
+        for wall in ("inner", "outer"):
+            assert objs[f"occluder.D65_{side}_box_{wall}"]["materials"] == ["mat.luminaire_white"]
+        mirror = objs[f"D65/mirror.D65_{side}"]
+        v = np.asarray(mirror["vertices_m"]) * 1e3
+        assert np.ptp(v, axis=0) == pytest.approx([130, 118, 0], abs=0.01)
+        assert v[:, 2] == pytest.approx(725 + 35, abs=0.01)
+        assert v[:, 0].mean() == pytest.approx(-380 if side == "left" else 380, abs=0.01)
+        assert mirror["glossy_roughness"] == 0.0
+        assert mirror["glossy_rgb"] == pytest.approx([0.88] * 3, abs=0.02)
+        lamp = objs[f"D65/lamp.D65_{side}"]
+        assert lamp["props"]["lbscene_lamp_kind"] == "tube"
+        assert lamp["materials"][0].startswith("D65/emitter")
+    unbound = [n for n, o in objs.items() if o["type"] == "MESH" and (not o["materials"] or None in o["materials"])]
+    assert unbound == []
