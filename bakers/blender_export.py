@@ -30,7 +30,8 @@ once in RGB instead of band by band, so that it holds one definition of the ligh
   collection ``booth`` holds what all share.  The first lighting is on; switch by ticking a
   collection's checkbox in the outliner (only one at a time).
 * **Camera**: the observer's eye (``observer.position_mm``) looking at ``look_at_mm``; its
-  field of view frames the booth's floor (``interior`` width × depth) with a 5 % margin.
+  field of view frames the booth's floor (:func:`lbscene.engine.scene.viewing.observer_view`,
+  the USD stage's camera too).
 * **Mirrors** are the bake's plates behind each reflector lamp; a camera ray sees them as a
   mirror of the reflector's reflectance (Glossy BSDF), every other ray as the absorbing plate
   the bake has (the light they send is the bake's image emitter, exact).
@@ -55,8 +56,8 @@ import numpy as np
 
 from .job import BakeJob, load_job, save_job
 
-__all__ = ["band_rgb_matrices", "camera_view", "export_blender", "BlenderExport", "build_blend",
-           "XYZ_TO_LINEAR_SRGB", "REC709_Y", "FRAME_MARGIN", "IMAGE_WIDTH_PX", "main"]
+__all__ = ["band_rgb_matrices", "export_blender", "BlenderExport", "build_blend", "XYZ_TO_LINEAR_SRGB",
+           "REC709_Y", "LIGHTING_ROLES", "main"]
 
 #: IEC 61966-2-1 XYZ → linear sRGB (Rec. 709 primaries, D65 white): Blender's scene-linear space
 XYZ_TO_LINEAR_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
@@ -64,10 +65,6 @@ XYZ_TO_LINEAR_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
                                [0.0556434, -0.2040259, 1.0572252]])
 #: luminance of linear Rec. 709: the Y row of the inverse of :data:`XYZ_TO_LINEAR_SRGB`
 REC709_Y = np.linalg.inv(XYZ_TO_LINEAR_SRGB)[1]
-#: the camera frames the floor with this relative margin
-FRAME_MARGIN = 0.05
-#: width of the camera's image (its height follows the field of view)
-IMAGE_WIDTH_PX = 960
 #: roles of the job's meshes that go into a lighting's collection even where all lightings share them
 LIGHTING_ROLES = ("lamp_body", "mirror")
 #: render samples written into the file (a user's preview; tests set their own)
@@ -97,28 +94,6 @@ def band_rgb_matrices(bands) -> tuple[np.ndarray, np.ndarray]:
     F = XYZ_TO_LINEAR_SRGB @ w
     F = F / (F @ np.ones(grid.count))[:, None]               # ρ = 1 → (1, 1, 1)
     return E, F
-
-
-def camera_view(ir) -> dict:
-    """The observer's camera: position and aim (mm), horizontal field of view (rad) and image size
-    framing the floor (``interior`` width × depth, :data:`FRAME_MARGIN` around) from the eye."""
-    eye = np.asarray(ir.observer.position_mm, float)
-    target = np.asarray(ir.observer.look_at_mm, float)
-    fwd = target - eye
-    fwd /= np.linalg.norm(fwd)
-    up0 = np.array([0.0, 0.0, 1.0]) if abs(fwd[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
-    right = np.cross(fwd, up0)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, fwd)
-    w, d = ir.interior.width_mm / 2, ir.interior.depth_mm / 2
-    corners = np.array([[x, y, 0.0] for x in (-w, w) for y in (-d, d)]) - eye
-    depth = corners @ fwd
-    tx = np.max(np.abs(corners @ right) / depth) * (1 + FRAME_MARGIN)
-    ty = np.max(np.abs(corners @ up) / depth) * (1 + FRAME_MARGIN)
-    height = max(2, int(round(IMAGE_WIDTH_PX * ty / tx)))
-    return {"position_mm": eye.tolist(), "look_at_mm": target.tolist(), "right": right.tolist(),
-            "up": up.tolist(), "forward": fwd.tolist(), "angle_x_rad": float(2 * math.atan(tx)),
-            "angle_y_rad": float(2 * math.atan(ty)), "resolution": [IMAGE_WIDTH_PX, height]}
 
 
 @dataclass
@@ -183,6 +158,7 @@ def export_blender(booth: Path | str, out: Path | str, *, lightings: Iterable[st
     from lbscene.engine.files.processes import dies_with_parent
     from lbscene.engine.scene.compile import compile_loaded, find_booth_file
     from lbscene.engine.scene.lint import lint_booth
+    from lbscene.engine.scene.viewing import observer_view
 
     from .from_ir import lighting_job
 
@@ -214,7 +190,7 @@ def export_blender(booth: Path | str, out: Path | str, *, lightings: Iterable[st
                                           expected=f"one of {', '.join(ir.lighting)}"))
     jobs = [(name, lighting_job(ir, name, environment=False, maps=False, grid=True)) for name in names]
     notes = sorted({n for _, j in jobs for n in (j.source.get("notes") or "").split("; ") if n})
-    cam = camera_view(ir)
+    cam = observer_view(ir)
     mirrors = {}
     for lamp in ir.lamps:
         if lamp.reflector and lamp.reflector in ir.reflectors:
