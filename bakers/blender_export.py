@@ -19,8 +19,10 @@ once in RGB instead of band by band, so that it holds one definition of the ligh
   with ``M_709`` the IEC 61966-2-1 XYZ → linear sRGB matrix, so ``683 · Y(rgb)`` is the
   luminance (or luminous intensity) of the spectrum, as the bake's photometry
   (683 lm/W · Σ E_b ∫_band V dλ) counts it: an illuminance E_v in lx rendered in Blender is
-  ``683 · Y(E_rgb)``, a white sample under 2000 lx has radiance ≈ 2000·ρ/(683 π) ≈ 0.75 at
-  exposure 0.  A point light's power P gives P/4π W·sr⁻¹, an Emission shader's
+  ``683 · Y(E_rgb)``, a white sample (ρ = 0.8) under 2000 lx has radiance 2000·ρ/(683 π) ≈ 0.75 at
+  exposure 0.  A spectrum outside the Rec. 709 gamut (a narrow-band or UV lamp) has negative
+  components: they are cut to 0 and the rest scaled to keep ``Y``.  A point light's power P
+  gives P/4π W·sr⁻¹, an Emission shader's
   colour × strength is the surface's radiance (both verified by tests/bakers/test_radiometry.py).
 * **Surfaces** (reflectances, the diffuser's transmittance) are their colour under D65
   (Blender's white): ``rgb = N · M_709 · Σ_b ρ_b S_b X̄_b / Σ_b S_b Ȳ_b`` with ``N`` mapping
