@@ -7,7 +7,8 @@ once in RGB instead of band by band, so that it holds one definition of the ligh
 
 * **Lamps** are the surfaces the bake makes them: a tube is an emitting cylinder of the tube's
   length and diameter (its caps where the booth has them), a panel an emitting rectangle of its
-  size, a bulb an emitting sphere of its radius, a point lamp a Blender point light.  Angular
+  size, a bulb an emitting sphere of its radius, a point lamp a Blender point light (its Power
+  the watts, its node colour the chromaticity with peak 1: I = P · colour / 4π).  Angular
   profiles, tube-end falloff, spectral filters and reflector images are the bake's node trees.
 * **Watts** follow Blender's radiometric convention: an RGB value of light is radiant power in
   W (radiance in W·sr⁻¹·m⁻², intensity in W·sr⁻¹) whose luminous counterpart is
@@ -356,6 +357,17 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
         if yc > 0 and y > 0:
             cut = cut * (y / yc)
         sock.default_value = (float(cut[0]), float(cut[1]), float(cut[2]), 1.0)
+    # a point light's Power field holds its watts: the node colour keeps the chromaticity (peak 1)
+    for ld in bpy.data.lights:
+        emis = next((n for n in ld.node_tree.nodes if n.bl_idname == "ShaderNodeEmission"), None) \
+            if ld.node_tree is not None else None
+        if emis is None:
+            continue
+        rgb = np.asarray(emis.inputs["Color"].default_value[:3], float)
+        peak = float(rgb.max())
+        if peak > 0:
+            emis.inputs["Color"].default_value = (*(rgb / peak).tolist(), 1.0)
+            ld.energy = float(ld.energy * peak)
     # only the first lighting is on
     for i, coll in enumerate(lighting_colls):
         scene.view_layers[0].layer_collection.children[coll.name].exclude = i > 0

@@ -204,3 +204,43 @@ def test_spectralight_masks_boxes_and_mirrors(tmp_path):
         assert lamp["materials"][0].startswith("D65/emitter")
     unbound = [n for n, o in objs.items() if o["type"] == "MESH" and (not o["materials"] or None in o["materials"])]
     assert unbound == []
+
+
+POINT_BOOTH = """\
+version: 1
+kind: booth
+name: Point lamp test booth
+provenance: {status: synthetic, source: "lbscene test suite"}
+interior: {type: box, width_mm: 1000, depth_mm: 600, height_mm: 800}
+materials:
+  grey: {type: diffuse, reflectance: {type: constant, value: 0.5}}
+surfaces: {floor: grey, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: grey}
+lamps:
+  - {id: spot, type: point, position_mm: [0, 0, 700], spd: {type: cie_illuminant, name: D65},
+     output: {type: peak_intensity_cd, value_cd: 250}}
+lighting:
+  D65: {lamps: [spot]}
+geometries: [{name: 45as45}]
+observer: {type: eye_point, position_mm: [0, -900, 500]}
+"""
+
+
+def test_point_lamp_is_a_point_light_of_its_watts(tmp_path):
+    """A point lamp of 250 cd is a Blender point light of radius 0 whose Power P (W) and colour c
+    (peak 1) give 683 · P · Y(c) / 4π = 250 cd, Blender's convention (683 lm/W)."""
+    pytest.importorskip("bpy")
+    import lbscene
+
+    (tmp_path / "booth").mkdir()
+    (tmp_path / "booth" / "booth.yaml").write_text(POINT_BOOTH)
+    lbscene.export_blender(tmp_path / "booth", tmp_path / "p.blend")
+    objs = _run_probe("inspect", tmp_path / "p.blend")[0]["objects"]
+    lights = [o for o in objs.values() if o["type"] == "LIGHT"]
+    assert len(lights) == 1
+    light = lights[0]
+    assert light["light"]["type"] == "POINT" and light["light"]["radius_m"] == 0.0
+    assert np.asarray(light["location_m"]) * 1e3 == pytest.approx([0, 0, 700], abs=1e-3)
+    c = np.asarray(light["emission_rgb"])
+    assert c.max() == pytest.approx(1.0)
+    intensity_cd = 683.0 * light["light"]["energy_W"] * float(REC709_Y @ c) / (4 * math.pi)
+    assert intensity_cd == pytest.approx(250.0, rel=0.005)
