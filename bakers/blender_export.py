@@ -8,7 +8,9 @@ once in RGB instead of band by band, so that it holds one definition of the ligh
 * **Lamps** are the surfaces the bake makes them: a tube is an emitting cylinder of the tube's
   length and diameter (its caps where the booth has them), a panel an emitting rectangle of its
   size, a bulb an emitting sphere of its radius, a point lamp a Blender point light (its Power
-  the watts, its node colour the chromaticity with peak 1: I = P · colour / 4π).  Angular
+  the watts, its node colour the chromaticity with peak 1: I = P · colour / 4π).  An emitting
+  surface's Emission Strength is its radiance in W·sr⁻¹·m⁻² and its colour the chromaticity
+  (peak 1): a Lambertian emitter of area A sends π · A · Strength · colour W.  Angular
   profiles, tube-end falloff, spectral filters and reflector images are the bake's node trees.
 * **Watts** follow Blender's radiometric convention: an RGB value of light is radiant power in
   W (radiance in W·sr⁻¹·m⁻², intensity in W·sr⁻¹) whose luminous counterpart is
@@ -357,6 +359,28 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
         if yc > 0 and y > 0:
             cut = cut * (y / yc)
         sock.default_value = (float(cut[0]), float(cut[1]), float(cut[2]), 1.0)
+    # an emitting surface's Strength holds its radiance (W·sr⁻¹·m⁻²), its colour the chromaticity
+    # (peak 1); where a profile drives Strength, the product goes through a Multiply node
+    for mat in bpy.data.materials:
+        if mat.node_tree is None:
+            continue
+        for emis in [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeEmission"]:
+            rgb = np.asarray(emis.inputs["Color"].default_value[:3], float)
+            peak = float(rgb.max())
+            if peak <= 0 or emis.inputs["Color"].is_linked:
+                continue
+            emis.inputs["Color"].default_value = (*(rgb / peak).tolist(), 1.0)
+            strength = emis.inputs["Strength"]
+            if strength.is_linked:
+                src = strength.links[0].from_socket
+                mul = mat.node_tree.nodes.new("ShaderNodeMath")
+                mul.operation = "MULTIPLY"
+                mul.label = "radiance W/(sr m²)"
+                mat.node_tree.links.new(src, mul.inputs[0])
+                mul.inputs[1].default_value = peak
+                mat.node_tree.links.new(mul.outputs[0], strength)
+            else:
+                strength.default_value = float(strength.default_value * peak)
     # a point light's Power field holds its watts: the node colour keeps the chromaticity (peak 1)
     for ld in bpy.data.lights:
         emis = next((n for n in ld.node_tree.nodes if n.bl_idname == "ShaderNodeEmission"), None) \

@@ -26,12 +26,25 @@ import numpy as np
 REC709_Y = np.array([0.2126729, 0.7151522, 0.0721750])
 
 
+def _strength(sock):
+    """A Strength input's constant factor: its value, or the constant of the Multiply feeding it."""
+    if not sock.is_linked:
+        return sock.default_value
+    node = sock.links[0].from_node
+    if node.bl_idname == "ShaderNodeMath" and node.operation == "MULTIPLY" and not node.inputs[1].is_linked:
+        return node.inputs[1].default_value
+    return None
+
+
 def _emission(mat):
+    """Colour × strength of a material's (or light's) Emission node: radiance (or intensity) RGB."""
     if mat is None or mat.node_tree is None:
         return None
     for n in mat.node_tree.nodes:
         if n.bl_idname == "ShaderNodeEmission":
-            return list(n.inputs["Color"].default_value)[:3]
+            k = _strength(n.inputs["Strength"])
+            c = list(n.inputs["Color"].default_value)[:3]
+            return [x * k for x in c] if k is not None else None
     return None
 
 
@@ -52,6 +65,10 @@ def inspect(path):
                 polys.append([list(mw @ obj.data.vertices[i].co) for i in p.vertices])
             d["area_m2"] = float(sum(p.area for p in obj.data.polygons))
             d["emission_rgb"] = _emission(obj.data.materials[0] if obj.data.materials else None)
+            emis = [n for n in obj.data.materials[0].node_tree.nodes if n.bl_idname == "ShaderNodeEmission"] \
+                if obj.data.materials and obj.data.materials[0] else []
+            if emis:
+                d["emission_color"] = list(emis[0].inputs["Color"].default_value)[:3]
             if obj.data.materials and obj.data.materials[0]:
                 nodes = obj.data.materials[0].node_tree.nodes
                 d["node_types"] = sorted({n.bl_idname for n in nodes})

@@ -87,7 +87,8 @@ def _lamp(contents, lighting):
 
 
 def _flux_lm(obj) -> float:
-    """Luminous flux of a Lambertian emitting mesh in Blender's watts: π · 683 · Y(L) · area."""
+    """Luminous flux of a Lambertian emitting mesh in Blender's watts: π · 683 · Y(L) · area, with
+    L = colour × Strength its radiance."""
     return math.pi * 683.0 * float(REC709_Y @ np.asarray(obj["emission_rgb"])) * obj["area_m2"]
 
 
@@ -108,6 +109,7 @@ def test_lamps_are_emitters_of_their_shape_size_and_watts(contents):
     for name, obj in (("tube", tube), ("panel", panel), ("bulb", bulb)):
         assert _flux_lm(obj) == pytest.approx(FLUX_LM[name], rel=0.01), name
         assert obj["visible_camera"]
+        assert max(obj["emission_color"]) == pytest.approx(1.0)     # the colour, its Strength the level
     # the colours are the lamps' own: A warm, D65 near white, 3000 K between
     a, d65 = np.asarray(tube["emission_rgb"]), np.asarray(panel["emission_rgb"])
     assert a[0] / a[2] > 3 and 0.9 < d65[0] / d65[2] < 1.1
