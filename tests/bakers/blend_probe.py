@@ -10,7 +10,11 @@ with L the probe's radiance (albedo 1) and Y the Rec. 709 luminance of Blender's
 ``inspect``: prints ``FILE {…}``: per object its type, collection, material names, vertices (m),
 light data and the emission colour of its material, read back from the file.
 
-Usage: python blend_probe.py render FILE LIGHTING[,LIGHTING…] X_MM Y_MM Z_MM SAMPLES
+``env``: the same from an equirectangular render of the radiance above the point (see
+:func:`env_render`).
+
+Usage: python blend_probe.py render FILE LIGHTING[,LIGHTING…] X_MM Y_MM Z_MM SAMPLES [MAX_BOUNCES]
+       python blend_probe.py env FILE LIGHTING[,LIGHTING…] X_MM Y_MM Z_MM SAMPLES
        python blend_probe.py inspect FILE
 """
 
@@ -92,7 +96,7 @@ def inspect(path):
                                 "props": {k: sc[k] for k in sc.keys() if isinstance(sc[k], str)}}))
 
 
-def render(path, lightings, x_mm, y_mm, z_mm, samples):
+def render(path, lightings, x_mm, y_mm, z_mm, samples, max_bounces=None):
     bpy.ops.wm.open_mainfile(filepath=path)
     sc = bpy.context.scene
     c = sc.cycles
@@ -101,6 +105,8 @@ def render(path, lightings, x_mm, y_mm, z_mm, samples):
     c.seed = 1
     c.use_denoising = False
     c.use_adaptive_sampling = False
+    if max_bounces is not None:
+        c.max_bounces = max_bounces      # 0: the lamps' direct light only
     m = 1e-3
     bpy.ops.mesh.primitive_plane_add(size=0.004, location=(x_mm * m, y_mm * m, z_mm * m + 0.0005))
     probe = bpy.context.active_object
@@ -144,8 +150,64 @@ def render(path, lightings, x_mm, y_mm, z_mm, samples):
                                      "rgb_radiance": px.tolist()}))
 
 
+def env_render(path, lightings, x_mm, y_mm, z_mm, samples, width=256):
+    """Illuminance on an upward-facing receiver from an equirectangular render of the radiance
+    around the point (1 mm above it): E = Σ L · sin(lat) · cos(lat) Δlat Δlon over the upper
+    half; every emitter seen by camera rays.  Resolves small sources seen through a rough glass
+    plate, which a diffuse probe reaches only by chance."""
+    from mathutils import Matrix
+
+    bpy.ops.wm.open_mainfile(filepath=path)
+    sc = bpy.context.scene
+    c = sc.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.seed = 1
+    c.use_denoising = False
+    c.use_adaptive_sampling = False
+    for obj in sc.objects:
+        if obj.type in ("MESH", "LIGHT") and str(obj.get("lbscene_role", "")).startswith("lamp"):
+            obj.visible_camera = True
+    cam = bpy.data.cameras.new("env_camera")
+    cam.type = "PANO"
+    cam.panorama_type = "EQUIRECTANGULAR"
+    cam.clip_start = 1e-4
+    cam.clip_end = 100.0
+    cam_obj = bpy.data.objects.new("env_camera", cam)
+    sc.collection.objects.link(cam_obj)
+    # local +Y = world up, local -Z = world +y: latitude is the elevation above the horizon
+    cam_obj.matrix_world = Matrix(((1, 0, 0, x_mm * 1e-3), (0, 0, -1, y_mm * 1e-3),
+                                   (0, 1, 0, z_mm * 1e-3 + 1e-3), (0, 0, 0, 1)))
+    sc.camera = cam_obj
+    sc.render.resolution_x, sc.render.resolution_y = width, width // 2
+    sc.render.resolution_percentage = 100
+    sc.view_settings.view_transform = "Raw"
+    sc.render.use_compositing = False
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_depth = "32"
+    h = width // 2
+    lat = -math.pi / 2 + (np.arange(h) + 0.5) * math.pi / h          # pixel rows from the bottom
+    weight = np.clip(np.sin(lat), 0, None) * np.cos(lat) * (math.pi / h) * (2 * math.pi / width)
+    for lighting in lightings.split(","):
+        for lc in sc.view_layers[0].layer_collection.children:
+            if lc.name.startswith("lighting "):
+                lc.exclude = lc.name != f"lighting {lighting}"
+        with tempfile.TemporaryDirectory() as d:
+            sc.render.filepath = str(Path(d) / "env.exr")
+            bpy.ops.render.render(write_still=True)
+            img = bpy.data.images.load(sc.render.filepath)
+            px = np.array(img.pixels[:], float).reshape(h, width, 4)[..., :3]
+            bpy.data.images.remove(img)
+        e_rgb = (px * weight[:, None, None]).sum(axis=(0, 1))
+        print("PROBE " + json.dumps({"lighting": lighting, "illuminance_lx": 683.0 * float(REC709_Y @ e_rgb),
+                                     "rgb_irradiance": e_rgb.tolist()}))
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "inspect":
         inspect(sys.argv[2])
+    elif sys.argv[1] == "env":
+        env_render(sys.argv[2], sys.argv[3], *map(float, sys.argv[4:7]), int(sys.argv[7]))
     else:
-        render(sys.argv[2], sys.argv[3], *map(float, sys.argv[4:7]), int(sys.argv[7]))
+        render(sys.argv[2], sys.argv[3], *map(float, sys.argv[4:7]), int(sys.argv[7]),
+               int(sys.argv[8]) if len(sys.argv) > 8 else None)

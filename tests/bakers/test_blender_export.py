@@ -246,3 +246,23 @@ def test_point_lamp_is_a_point_light_of_its_watts(tmp_path):
     assert c.max() == pytest.approx(1.0)
     intensity_cd = 683.0 * light["light"]["energy_W"] * float(REC709_Y @ c) / (4 * math.pi)
     assert intensity_cd == pytest.approx(250.0, rel=0.005)
+
+
+@pytest.mark.slow
+def test_spectralight_direct_light_is_the_forward_models(tmp_path):
+    """The shipped SpectraLight QC's direct light at the sample, rendered from its file (Cycles,
+    no bounce), is the analytic forward model's (its effects but inter-reflection) within 2 % for
+    a filtered D65 pair with Gaussian beams, prism mirrors, masks and a glass plate, the A bulb
+    and the three TL84 tubes: the shape, the watts and the occluders of every lighting."""
+    pytest.importorskip("bpy")
+    import lbscene
+    from lbscene.engine.light.forward import ForwardModel
+
+    out = tmp_path / "splqc.blend"
+    lbscene.export_blender("xrite-spectralight-qc", out, lightings=["D65", "A", "TL84"])
+    got = {p["lighting"]: p["illuminance_lx"] for p in _run_probe("render", out, "D65,A,TL84", 0, 0, 0, 1024, 0)}
+    ir = lbscene.compile_booth("xrite-spectralight-qc")
+    effects = {k: v for k, v in ir.effects.items() if k != "interreflection"}
+    for lighting in ("D65", "A", "TL84"):
+        model = float(ForwardModel(ir, lighting, effects=effects).illuminance_lx([[0.0, 0.0, 0.0]])[0])
+        assert got[lighting] == pytest.approx(model, rel=0.02), lighting
