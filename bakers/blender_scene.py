@@ -25,7 +25,8 @@ Radiometry (1 Blender unit = 1 m; verified by tests/bakers/test_radiometry.py):
 Exact-output settings: no clamping, light threshold 0, no adaptive sampling,
 no denoiser, fixed seed, box pixel filter, float32 EXR, 'Raw' view transform.
 
-Only this module (and :mod:`lbscene.bakers.bake`) imports ``bpy``.
+Only this module, :mod:`lbscene.bakers.bake` and :mod:`lbscene.bakers.blender_export` (the
+``.blend`` for Blender users, built with this module's scene in RGB) import ``bpy``.
 """
 
 from __future__ import annotations
@@ -153,7 +154,10 @@ class BlenderScene:
     """A job's Blender scene plus the sockets that carry per-band values."""
 
     job: BakeJob
-    _colour_setters: list = field(default_factory=list)   # fn(band indices) -> None
+    #: (socket, band values, kind): every socket whose value varies with wavelength; kind is
+    #: ``"emission"`` (spectral radiance or intensity per nm) or ``"factor"`` (reflectance,
+    #: transmittance: dimensionless)
+    _colour_sockets: list = field(default_factory=list)
     _sensors: dict = field(default_factory=dict)
     #: group → [(object, original matrix)] and [(aim socket, aim)] for group transforms
     _groups: dict = field(default_factory=dict)
@@ -174,22 +178,7 @@ class BlenderScene:
         self.device = configure_device()
         for mid, mat in job.materials.items():
             self._material(mid, mat)
-        for mesh in job.meshes:
-            obj = self._mesh_object(mesh.id, mesh.vertices_mm, mesh.triangles)
-            obj.data.materials.append(bpy.data.materials[f"mat.{mesh.material}"])
-            obj.visible_camera = mesh.visible_to_camera
-            obj["lbscene_role"] = mesh.role
-            self._add_to_group(mesh.group, obj)
-        for em in job.emitters:
-            if em.type == "points":
-                self._point_emitters(em)
-            else:
-                self._area_emitter(em)
-        for sheet in job.sheets:
-            self._sheet(sheet)
-        # shadow linking once every object exists
-        for obj, win in self._pending_blockers:
-            obj.light_linking.blocker_collection = self._blockers_outside(win)
+        self.add_objects(job.meshes, job.emitters, job.sheets)
         for p in job.products:
             if p.type == "irradiance_points":
                 self._sensors[p.id] = self._point_sensors(p)
@@ -197,6 +186,29 @@ class BlenderScene:
                 self._sensors[p.id] = self._map_sensor(p)
         self.set_band_group(band_groups(job.bands.count)[0])
         return self
+
+    def add_objects(self, meshes, emitters, sheets) -> None:
+        """Add a job's meshes (materials already made), emitters and transmissive sheets to the
+        scene; the shadow links of mirror images are made once all of them exist."""
+        import bpy
+
+        for mesh in meshes:
+            obj = self._mesh_object(mesh.id, mesh.vertices_mm, mesh.triangles)
+            obj.data.materials.append(bpy.data.materials[f"mat.{mesh.material}"])
+            obj.visible_camera = mesh.visible_to_camera
+            obj["lbscene_role"] = mesh.role
+            self._add_to_group(mesh.group, obj)
+        for em in emitters:
+            if em.type == "points":
+                self._point_emitters(em)
+            else:
+                self._area_emitter(em)
+        for sheet in sheets:
+            self._sheet(sheet)
+        # shadow linking once every object exists
+        for obj, win in self._pending_blockers:
+            obj.light_linking.blocker_collection = self._blockers_outside(win)
+        self._pending_blockers.clear()
 
     def _add_to_group(self, group, obj) -> None:
         if group is not None:
@@ -309,7 +321,7 @@ class BlenderScene:
             sock = bsdf.inputs["Color"]
         nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
         values = mat.reflectance
-        self._colour_setters.append(lambda idx, s=sock, v=values: setattr(s, "default_value", _rgb(v, idx)))
+        self._colour_sockets.append((sock, values, "factor"))
 
     # ------------------------------------------------------------------ emitters
     def _emitter_bands(self, em) -> np.ndarray:
@@ -499,8 +511,7 @@ class BlenderScene:
                 else:
                     emis.inputs["Strength"].default_value = 1.0
                 sock = emis.inputs["Color"]
-                self._colour_setters.append(
-                    lambda idx, s=sock, v=bands: setattr(s, "default_value", _rgb(v, idx)))
+                self._colour_sockets.append((sock, bands, "emission"))
                 datas[key] = ld
             obj = bpy.data.objects.new(f"{em.id}.{k:04d}", datas[key])
             m = Matrix.Identity(4)
@@ -552,7 +563,7 @@ class BlenderScene:
             self._pending_blockers.append((obj, em.window))
         self._add_to_group(em.group, obj)
         sock = emis.inputs["Color"]
-        self._colour_setters.append(lambda idx, s=sock, v=bands: setattr(s, "default_value", _rgb(v, idx)))
+        self._colour_sockets.append((sock, bands, "emission"))
 
     # ------------------------------------------------------------------ sheets
     def _slab_transmittance_ratio(self, nb: _Nodes, ior: float):
@@ -604,8 +615,7 @@ class BlenderScene:
             colour = np.sqrt(np.clip(t / s0, 0.0, 1.0))
             nb.link(glass.outputs[0], out.inputs["Surface"])
             sock = glass.inputs["Color"]
-            self._colour_setters.append(
-                lambda idx, s=sock, v=colour: setattr(s, "default_value", _rgb(v, idx)))
+            self._colour_sockets.append((sock, colour, "factor"))
         else:
             obj = self._mesh_object(sheet.id, sheet.vertices_mm, sheet.triangles)
             mult = nb.new("ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
@@ -632,8 +642,7 @@ class BlenderScene:
                 nb.link(mix.outputs[0], out.inputs["Surface"])
             else:
                 nb.link(transp.outputs[0], out.inputs["Surface"])
-            self._colour_setters.append(
-                lambda idx, s=colour_sock, v=t: setattr(s, "default_value", _rgb(v, idx)))
+            self._colour_sockets.append((colour_sock, t, "factor"))
         obj.data.materials.append(m)
         obj["lbscene_role"] = sheet.role
         self._add_to_group(sheet.group, obj)
@@ -746,8 +755,22 @@ class BlenderScene:
     # ------------------------------------------------------------------ passes
     def set_band_group(self, idx: list[int]) -> None:
         """Write bands ``idx`` (≤ 3) into the R, G, B of every spectral socket."""
-        for fn in self._colour_setters:
-            fn(idx)
+        for sock, values, _ in self._colour_sockets:
+            sock.default_value = _rgb(values, idx)
+
+    def set_rgb(self, emission_to_rgb: np.ndarray, factor_to_rgb: np.ndarray) -> None:
+        """Write one RGB rendering of every spectral socket (instead of band groups).
+
+        ``emission_to_rgb`` (3, bands) maps band values per nm of an emitter to its RGB,
+        ``factor_to_rgb`` (3, bands) a reflectance or transmittance to its RGB (see
+        :mod:`lbscene.bakers.blender_export`).
+        """
+        for sock, values, kind in self._colour_sockets:
+            m = emission_to_rgb if kind == "emission" else factor_to_rgb
+            rgb = m @ np.asarray(values, float)
+            if kind == "factor":
+                rgb = np.clip(rgb, 0.0, 1.0)
+            sock.default_value = (float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0)
 
     def _samples(self, samples: int, seed: int) -> None:
         import bpy

@@ -37,6 +37,7 @@ __all__ = [
     "bake",
     "conformance",
     "export_mitsuba",
+    "export_blender",
     "LbsceneUserError",
     "Diagnostic",
 ]
@@ -365,6 +366,45 @@ def export_mitsuba(booth: Path | str, out: Path | str, *, lighting: str | None =
     return _export(_path_arg(booth, "booth"), _path_arg(out, "out"), lighting=lighting,
                    measurements=None if measurements is None else _path_arg(measurements, "measurements"),
                    spp=spp, allowed_dirs=tuple(allowed_dirs))
+
+
+def export_blender(booth: Path | str, out: Path | str, *, lightings: Iterable[str] | None = None,
+                   allowed_dirs: Iterable[Path] = ()):
+    """Write a booth as a Blender file (``.blend``): the Cycles scene ``lbscene bake`` renders, in
+    RGB, with every lighting as a collection and the observer as the camera.
+
+    See :mod:`lbscene.bakers.blender_export` for what the file represents and its light units
+    (Blender's watts, 683 lm/W).
+
+    Parameters
+    ----------
+    booth : path or str
+        Booth folder, ``booth.yaml`` or a shipped booth's name.
+    out : path or str
+        The ``.blend`` to write.
+    lightings : iterable of str, optional
+        Lightings to include (default: all; the first is switched on).
+    allowed_dirs : iterable of path
+        Extra folders file references may point into.
+
+    Returns
+    -------
+    lbscene.bakers.blender_export.BlenderExport
+
+    Raises
+    ------
+    LbsceneUserError
+        ``LB500`` an ``out`` that is not ``.blend``, ``LB202`` an unknown lighting, ``LB604``
+        without bpy, ``LB600`` Blender failed, ``LB610``–``LB612`` an output the policy refuses.
+    TypeError
+        ``lightings`` a single string, a path argument of another type.
+    """
+    from .bakers.blender_export import export_blender as _export
+
+    if isinstance(lightings, str):
+        raise TypeError(f"lightings must be an iterable of lighting names, got {lightings!r}")
+    return _export(_path_arg(booth, "booth"), _path_arg(out, "out"),
+                   lightings=None if lightings is None else list(lightings), allowed_dirs=tuple(allowed_dirs))
 
 
 def conformance(booth: Path | str, *, lightings: Iterable[str] | None = None,

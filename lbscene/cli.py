@@ -50,7 +50,7 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
 #: Command modules, in help order.  A module that is not present is skipped.
 COMMAND_MODULES = (
     "validate", "build", "compare", "plan", "history", "effects", "accuracy", "bake", "render",
-    "web", "visual_report", "conformance", "export_mitsuba",
+    "web", "visual_report", "conformance", "export_mitsuba", "export_blender",
 )
 
 for _name in COMMAND_MODULES:

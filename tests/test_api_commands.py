@@ -1,5 +1,5 @@
 """The API's functions for the other commands: ``write_report``, ``export_web``, ``bake``,
-``conformance`` and ``export_mitsuba``.  Bad arguments raise ``LbsceneUserError`` (located, with
+``conformance``, ``export_mitsuba`` and ``export_blender``.  Bad arguments raise ``LbsceneUserError`` (located, with
 its code) or ``TypeError``, never ``KeyError`` or ``AttributeError``."""
 
 from __future__ import annotations
@@ -12,8 +12,9 @@ import lbscene
 
 
 def test_the_new_functions_are_exported():
-    assert {"write_report", "export_web", "bake", "conformance", "export_mitsuba"} <= set(lbscene.__all__)
-    for name in ("write_report", "export_web", "bake", "conformance", "export_mitsuba"):
+    names = ("write_report", "export_web", "bake", "conformance", "export_mitsuba", "export_blender")
+    assert set(names) <= set(lbscene.__all__)
+    for name in names:
         doc = getattr(lbscene, name).__doc__
         assert "Parameters\n    ----------" in doc and "Returns\n    -------" in doc and "Raises" in doc
 
@@ -62,6 +63,19 @@ def test_export_web_arguments(minimal_booth, tmp_path):
     with pytest.raises(lbscene.LbsceneUserError) as ei:
         lbscene.export_web(minimal_booth, tmp_path / "v", size=(8, 8))
     assert ei.value.diagnostics[0].code == "LB500"
+
+
+def test_export_blender_arguments(minimal_booth, tmp_path):
+    with pytest.raises(TypeError):
+        lbscene.export_blender(minimal_booth, tmp_path / "b.blend", lightings="A")
+    with pytest.raises(lbscene.LbsceneUserError) as ei:
+        lbscene.export_blender(minimal_booth, tmp_path / "b.txt")
+    assert ei.value.diagnostics[0].code == "LB500"
+    assert ei.value.diagnostics[0].message == "--out must be a .blend file"
+    with pytest.raises(lbscene.LbsceneUserError) as ei:
+        lbscene.export_blender(minimal_booth, tmp_path / "b.blend", lightings=["D65"])
+    assert ei.value.diagnostics[0].code == "LB202"
+    assert not (tmp_path / "b.blend").exists()
     with pytest.raises(lbscene.LbsceneUserError) as ei:
         lbscene.export_web(minimal_booth, tmp_path / "v", lightings=["D65"])
     assert ei.value.diagnostics[0].code == "LB202"

@@ -302,3 +302,37 @@ def test_conformance_and_export_mitsuba_every_format(tmp_path, run_cli, fmt):
     code, out, err = run_cli("export-mitsuba", booth, "--out", xml, "--format", fmt)
     _assert_clean(code, out, err)
     assert xml.read_text(encoding="utf-8").lstrip().startswith("<")
+
+
+@pytest.mark.parametrize("fmt", ["text", "json"])
+def test_export_blender_every_format(tmp_path, run_cli, fmt):
+    """``export-blender`` on a shipped booth copied under a hostile folder name: a ``.blend`` with
+    one collection per lighting; a second run replaces its own file, a file lbscene did not write is
+    refused (``LB61x``) and left as it was, a bad suffix is ``LB500`` without a traceback."""
+    pytest.importorskip("bpy")
+    booth = tmp_path / ODD / "booth"
+    shutil.copytree(REPO / "booths" / "iso3664-p1-d50", booth)
+    blend = tmp_path / f"{ODD} booth.blend"
+    code, out, err = run_cli("export-blender", booth, "--out", blend, "--format", fmt)
+    _assert_clean(code, out, err)
+    head = blend.read_bytes()[:7]
+    assert head == b"BLENDER" or head[:4] == b"\x28\xb5\x2f\xfd"     # plain or zstd-compressed
+    if fmt == "json":
+        res = json.loads(out)
+        assert res["lightings"] == ["P1", "P2"]
+        assert 0 < res["camera"]["angle_x_deg"] < 180
+    else:
+        assert "lightings P1, P2" in out
+    assert "\x1b" not in out
+    if fmt == "json":
+        return
+    code, out, err = run_cli("export-blender", booth, "--out", blend)
+    _assert_clean(code, out, err)
+    foreign = tmp_path / "mine.blend"
+    foreign.write_bytes(b"not lbscene's")
+    code, out, err = run_cli("export-blender", booth, "--out", foreign)
+    _assert_clean(code, out, err, expect=2)
+    assert "LB61" in err and foreign.read_bytes() == b"not lbscene's"
+    code, out, err = run_cli("export-blender", booth, "--out", tmp_path / "booth.usd")
+    _assert_clean(code, out, err, expect=2)
+    assert "LB500" in err and "--out must be a .blend file" in err

@@ -41,11 +41,13 @@ So that the stage renders right in a standard tool:
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from .ir import SceneIR
+from .viewing import observer_view
 
 __all__ = ["SCHEMA_DIR", "register_schema", "write_stage", "stage_to_string", "stage_assets", "API_SCHEMAS",
            "lighting_spectrum_1nm", "adapted_linear_srgb", "luminous_factor", "fit_cosine_power",
@@ -53,6 +55,8 @@ __all__ = ["SCHEMA_DIR", "register_schema", "write_stage", "stage_to_string", "s
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "usd_schema"
 API_SCHEMAS = ("LbsceneSpectralAPI", "LbsceneLampAPI", "LbsceneBoothAPI")
+#: the observer camera's focal length (UsdGeom lens units); its apertures give the field of view
+CAMERA_FOCAL_LENGTH = 50.0
 _registered = False
 
 
@@ -446,10 +450,23 @@ def _build(ir: SceneIR, lighting: str | None):
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for t in tris for i in t]))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDoubleSidedAttr(True)
+        if o.material is not None and o.material in ir.materials:
+            mat = ir.materials[o.material]
+            mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*adapted_linear_srgb(
+                mat.reflectance.array_1nm, lighting_spectrum_1nm(ir, default)))]))
+            _bind(stage, mesh.GetPrim(), f"/Booth/Materials/{_prim_name(mat.id)}")
+            mesh.GetPrim().CreateAttribute("lbscene:occluder:material", Sdf.ValueTypeNames.Token,
+                                           custom=True).Set(mat.id)
 
     cam = UsdGeom.Camera.Define(stage, "/Booth/Observer")
     _orient_camera(UsdGeom.Xformable(cam.GetPrim()), ir.observer.position_mm, ir.observer.look_at_mm)
     cam.CreateClippingRangeAttr(Gf.Vec2f(1.0, 100000.0))
+    # the field of view frames the floor (viewing.observer_view): aperture / focal length = 2 tan(α/2)
+    view = observer_view(ir)
+    cam.CreateFocalLengthAttr(float(CAMERA_FOCAL_LENGTH))
+    cam.CreateHorizontalApertureAttr(float(2 * CAMERA_FOCAL_LENGTH * math.tan(view["angle_x_rad"] / 2)))
+    cam.CreateVerticalApertureAttr(float(2 * CAMERA_FOCAL_LENGTH * math.tan(view["angle_y_rad"] / 2)))
     return stage
 
 

@@ -162,6 +162,54 @@ def test_materials_diffuser_and_shaping(splqc_build):
         pytest.fail("the SpectraLight QC's D65 lamps declare a Gaussian profile")
 
 
+def test_every_mesh_has_its_declared_material(splqc_build):
+    """Lint of the stage: every mesh (surfaces, diffuser, the SpectraLight's masks and lamp boxes)
+    is bound to a material, an occluder to the one its booth file declares."""
+    from pxr import Usd, UsdGeom, UsdShade
+
+    out, ir = splqc_build
+    declared = {o.id: o.material for o in ir.occluders}
+    assert declared == {"D65_left_mask": "mask_black", "D65_right_mask": "mask_black",
+                        "D65_left_box_inner": "luminaire_white", "D65_left_box_outer": "luminaire_white",
+                        "D65_right_box_inner": "luminaire_white", "D65_right_box_outer": "luminaire_white"}
+    for path in (out / "scene.usda", out / "lighting" / "D65" / "scene.usda"):
+        stage = Usd.Stage.Open(str(path))
+        unbound = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)
+                   and not UsdShade.MaterialBindingAPI(p).ComputeBoundMaterial()[0]]
+        assert unbound == [], path
+        for oid, mid in declared.items():
+            prim = stage.GetPrimAtPath(f"/Booth/Occluders/{oid}")
+            mat = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
+            assert mat.GetPath().name == mid
+
+
+def test_observer_camera_frames_the_floor(splqc_build):
+    """The stage's camera stands at the observer, looks at ``look_at_mm`` and its field of view,
+    2 atan(aperture / 2 focal length), holds the whole floor, its corners within the 5 % margin."""
+    from pxr import Gf, Usd, UsdGeom
+
+    out, ir = splqc_build
+    stage = Usd.Stage.Open(str(out / "scene.usda"))
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Booth/Observer"))
+    m = cam.ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+    eye = np.array(m.ExtractTranslation())
+    assert eye == pytest.approx([0, -600, 560])                   # the booth file's eye point
+    fwd = np.array(m.TransformDir(Gf.Vec3d(0, 0, -1)))
+    fwd /= np.linalg.norm(fwd)
+    right = np.array(m.TransformDir(Gf.Vec3d(1, 0, 0)))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    assert fwd == pytest.approx(-eye / np.linalg.norm(eye))      # looking at the sample
+    f = cam.GetFocalLengthAttr().Get()
+    tx = cam.GetHorizontalApertureAttr().Get() / (2 * f)
+    ty = cam.GetVerticalApertureAttr().Get() / (2 * f)
+    w, d = ir.interior.width_mm / 2, ir.interior.depth_mm / 2
+    p = np.array([[x, y, 0] for x in (-w, w) for y in (-d, d)]) - eye
+    u = np.abs(p @ right) / (p @ fwd) / tx
+    v = np.abs(p @ up) / (p @ fwd) / ty
+    assert u.max() == pytest.approx(1 / 1.05, rel=1e-4) and v.max() == pytest.approx(1 / 1.05, rel=1e-4)
+
+
 def test_validators_pass_and_can_fail(splqc_build, tmp_path):
     from lbscene.engine.scene.usd_stage import validate_stage
 
