@@ -285,6 +285,7 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
         "sheets": tuple(s for s in first.sheets if _key(s) in shared_sheets),
         "emitters": (), "products": ()})
     scene_b = BlenderScene.build(base)
+    scene_b.camera_sees_lamps = True      # a user sees the lamps shine (the bake's maps see them black)
     scene = bpy.context.scene
     scene.name = spec["booth"][:63]
     booth = bpy.data.collections.new("booth")

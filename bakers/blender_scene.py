@@ -164,6 +164,9 @@ class BlenderScene:
     _group_aims: dict = field(default_factory=dict)
     _pending_blockers: list = field(default_factory=list)
     device: str = "CPU"
+    #: camera rays see a lamp's emission (a user's render); False (the bake): a lamp whose job
+    #: hides it from the camera is a black body to camera rays, its light left to the direct products
+    camera_sees_lamps: bool = False
 
     # ------------------------------------------------------------------ setup
     @classmethod
@@ -545,6 +548,14 @@ class BlenderScene:
                       (self._window_mask(nb, em.window) if em.window is not None else None)):
             if extra is not None:
                 strength = extra if strength is None else nb.math("MULTIPLY", strength, extra)
+        camera_black = not em.visible_to_camera and em.window is None and not self.camera_sees_lamps
+        if camera_black:
+            # black to camera rays, but there: the environment maps see the lamp's body (not what
+            # lies behind it) while its straight light is the direct products' (no double count);
+            # every other ray (diffuse, glossy, transmission, shadow) sees its emission
+            lp = nb.new("ShaderNodeLightPath")
+            not_camera = nb.math("SUBTRACT", 1.0, lp.outputs["Is Camera Ray"])
+            strength = not_camera if strength is None else nb.math("MULTIPLY", strength, not_camera)
         if strength is not None:
             nb.link(strength, emis.inputs["Strength"])
         if em.two_sided:
@@ -558,7 +569,8 @@ class BlenderScene:
             nb.link(mix.outputs[0], out.inputs["Surface"])
             m.cycles.emission_sampling = "FRONT"
         obj.data.materials.append(m)
-        obj.visible_camera = em.visible_to_camera and em.window is None
+        # a mirror image is virtual: camera rays pass it; a lamp is a body they stop at
+        obj.visible_camera = em.window is None
         if em.window is not None:
             self._pending_blockers.append((obj, em.window))
         self._add_to_group(em.group, obj)

@@ -29,7 +29,9 @@ Conventions
 
 ``JOB_VERSION`` changes whenever the meaning of the serialised form changes;
 versions in :data:`READABLE_JOB_VERSIONS` still load (version 2 only added
-fields: a version 1 job means what it meant);
+fields: a version 1 job means what it meant; version 3 made an area emitter hidden from the
+camera a black body to camera rays instead of one they pass through, and older jobs are
+rendered that way too);
 :attr:`BakeJob.content_hash` (sha256 of the canonical JSON) identifies a job
 for the bake cache.
 
@@ -89,9 +91,10 @@ __all__ = [
     "canonical_json",
 ]
 
-JOB_VERSION = 2
-#: versions this lbscene loads (2 added IES profiles, axial weights and windows on area emitters)
-READABLE_JOB_VERSIONS = (1, 2)
+JOB_VERSION = 3
+#: versions this lbscene loads (2 added IES profiles, axial weights and windows on area emitters;
+#: 3: an area emitter with ``visible_to_camera`` False stops camera rays as a black body)
+READABLE_JOB_VERSIONS = (1, 2, 3)
 JOB_KIND = "lbscene.bake_job"
 
 Vec3 = tuple[float, float, float]
@@ -371,7 +374,10 @@ class AreaEmitter(StrictModel):
     #: angular modulation f(θ) of the radiance, θ from ``aim`` (a lamp's declared profile)
     profile: Profile = IsotropicProfile()
     aim: Vec3 = (0.0, 0.0, -1.0)
-    #: False for lamps: environment maps leave their straight light to the direct products
+    #: False for lamps: environment maps leave their straight light to the direct products and
+    #: see the lamp as a black body (opaque: camera rays stop at it, as they do at the real lamp);
+    #: every other ray sees its emission.  A mirror image (``window``) is virtual: camera rays
+    #: pass it
     visible_to_camera: bool = True
     #: radiance × w(position along a tube) (tube-end falloff); None: uniform
     axial_weight: AxialWeight | None = None
