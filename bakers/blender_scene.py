@@ -21,6 +21,14 @@ Radiometry (1 Blender unit = 1 m; verified by tests/bakers/test_radiometry.py):
   emitter's colour is its spectral radiance in W·sr⁻¹·m⁻²·nm⁻¹.
 * A DIFFUSE bake of light only (no colour) stores irradiance/π; the baker
   multiplies by π.  Camera pixels are radiance.
+* A lamp's straight light is in the direct products, so an environment map must not see it,
+  but the lamp's body is in the way of what lies behind it.  A lamp surface is therefore
+  visible to camera rays with its emission strength × (1 − *Is Camera Ray*) (Light Path
+  node): camera rays stop at a black body (an emission-only surface scatters nothing), every
+  other ray — diffuse, glossy, transmission, shadow — sees its emission.  Camera rays that
+  pass a Transparent BSDF stay camera rays in Cycles, so the lamp seen through a clear sheet
+  is black too, as its light through the sheet is the direct products' (a shadow ray passes a
+  Transparent BSDF).  A mirror image is virtual: camera rays do not see it.
 
 Exact-output settings: no clamping, light threshold 0, no adaptive sampling,
 no denoiser, fixed seed, box pixel filter, float32 EXR, 'Raw' view transform.

@@ -15,7 +15,8 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   surface (and caps), a panel's rectangle, a bulb's sphere — of spectral
   radiance ``I_ref / A`` (band means of the 1 nm spectrum, through the lamp's
   filter when ``spectral_filter`` is on), modulated by the declared profile,
-  invisible to camera rays; point lamps as true points.  No lamp falls back
+  black bodies to camera rays (the environment maps see the lamp, not what lies behind it,
+  and leave its light to their direct products); point lamps as true points.  No lamp falls back
   to points.  Lamps that are off are there too, as black bodies in the light's
   way (as the model's inter-reflection has them, ``lamp_bodies``).
 * **effects** follow the booth's ``effects:`` (or ``effects=``) exactly as the
@@ -31,8 +32,9 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   occlusion, inter-reflection.
 * **products**: an equirect environment map 1 mm above the sample position
   (and one per geometry where the platform turns: above the turned sample,
-  in its frame) holding all light *but* that seen straight from the point
-  lamps (which no camera ray can hit), plus ``sample_direct``: that direct
+  in its frame) holding all light *but* that seen straight from the lamps
+  (black to its camera rays; a point lamp no camera ray can hit), plus
+  ``sample_direct``: that direct
   irradiance at the same point for the map's up normal and 62 directions over
   the sphere; the floor (and platform) irradiance maps; the irradiance at
   measurement points (default: the seed's 11 × 5 A3 grid around the sample).
