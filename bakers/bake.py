@@ -288,7 +288,26 @@ class _Bake:
                     e_all = e_up + finals[dp.id][ups[0]]
             si["irradiance_W_m2_nm"] = [float(x) for x in e_all]
             si["illuminance_lx"] = float(e_all @ self.w_v)
+            rel = self._sample_noise_relative(p, dp, ups[0] if dp is not None and ups else None)
+            if rel is not None:
+                si["illuminance_noise_relative"] = rel
         return products
+
+    def _sample_noise_relative(self, p, dp, up: int | None) -> float | None:
+        """Two-half noise of an environment map's sample illuminance (map + direct light):
+        ``|E_a − E_b| / (E_a + E_b)`` with each half the map's integral plus the direct product's
+        point; None without two halves."""
+        parts = self.halves[p.id]
+        if len(parts) != 2:
+            return None
+        e = [environment_irradiance(x, p.projection, p.forward, p.up, p.up) @ self.w_v for x in parts]
+        if up is not None:
+            d = self.halves[dp.id]
+            if len(d) != 2:
+                return None
+            e = [e[k] + float(d[k][up] @ self.w_v) for k in range(2)]
+        total = e[0] + e[1]
+        return float(abs(e[0] - e[1]) / total) if total > 0 else 0.0
 
     def manifest(self, products: dict, renderer: dict, build_s: float, t_start: float) -> dict:
         """The bake folder's manifest: the job, bands, photometry, quality, renderer, products,

@@ -162,7 +162,10 @@ def register(app: typer.Typer) -> None:
                     row["grid_noise_percent"] = round(100 * g["noise"]["illuminance_relative_rms"], 3)
             envs = [p for p in prods.values() if p["type"] == "environment_map"]
             if envs:
-                row["sample_lx_from_env"] = round(envs[0]["sample_irradiance"]["illuminance_lx"], 2)
+                si = envs[0]["sample_irradiance"]
+                row["sample_lx_from_env"] = round(si["illuminance_lx"], 2)
+                if si.get("illuminance_noise_relative") is not None:
+                    row["sample_noise_percent"] = round(100 * si["illuminance_noise_relative"], 3)
             rows.append(row)
         failed = [r for r in results if r.status == "failed"]
         if format is Format.json:

@@ -162,3 +162,27 @@ def test_spectralight_mirror_images_send_no_direct_light_to_the_sample(tmp_path)
     e_img = images["products"]["points"]["illuminance_lx"]["mean"]
     assert e_both > 500.0
     assert e_img < 1e-3 * e_both
+
+
+def test_the_sample_estimate_carries_its_two_half_noise(tmp_path):
+    """The map + direct estimate at the sample says how noisy it is: the lamp's straight light
+    (a 200 mm square at 500 mm, next-event estimated) is the whole estimate here (the map sees
+    the lamp black), exactly the closed form within the noise the manifest states."""
+    from lbscene.bakers.executor import BakeTask, run_tasks
+
+    lv, lt = rect(0, 0, LAMP_H_MM, 2 * LAMP_HALF_MM, 2 * LAMP_HALF_MM)
+    job = BakeJob(name="sample-noise", emitters=[
+        AreaEmitter(id="lamp", vertices_mm=lv, triangles=lt, radiance_W_sr_m2_nm=only({1: L_LAMP}),
+                    visible_to_camera=False)],
+        products=[EnvironmentMapProduct(id="env", position_mm=(0, 0, 0), width_px=32, samples=4,
+                                        direct_product="direct"),
+                  IrradiancePointsProduct(id="direct", light_paths="direct", samples=16, offset_mm=0.0,
+                                          points=[MeasurementPoint(position_mm=(0, 0, 0))])])
+    [r] = run_tasks([BakeTask(job, tmp_path / "bake")], progress=False)
+    assert r.status == "baked", (r.error, r.log_tail)
+    si = r.manifest["products"]["env"]["sample_irradiance"]
+    rel = si["illuminance_noise_relative"]
+    assert 0.0 <= rel < 0.02
+    e_band1 = si["irradiance_W_m2_nm"][1]
+    assert e_band1 == pytest.approx(_square_E(L_LAMP, LAMP_HALF_MM, LAMP_H_MM), rel=0.02 + 4 * rel)
+    assert si["from_map_W_m2_nm"][1] == 0.0
