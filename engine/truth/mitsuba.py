@@ -26,6 +26,12 @@ lamp bodies          tube, panel and bulb shapes are black (absorbing), as in th
 occluders            black (or declared-material) ``twosided`` rectangles; an
                      aperture plate is the frame around its opening
                      (``aperture_occlusion`` on)
+mirror (reflector)   a one-sided ``rectangle`` (the lamp's mirror:
+                     facing ``normal``, ``distance_mm`` behind the lamp,
+                     ``width_mm`` across its axis) of ``conductor``
+                     ``material: none`` whose ``specular_reflectance``
+                     is the declared reflectance (``reflector`` on;
+                     plane mirrors only); its back absorbs
 diffuser plate       a closed box of ``roughdielectric`` (GGX,
                      :math:`α = \\text{roughness}^2` as in Blender's Glass BSDF,
                      the declared ``ior`` and ``thickness_mm``; mid-plane at
@@ -93,6 +99,7 @@ VARIANT = "scalar_spectral"
 
 #: effects the provider represents (with the restrictions checked in ``_refusals``)
 SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
+                               "reflector",
                                "lamp_spectrum_shift",
                                "angular_profile", "detector_cosine_error"})
 
@@ -243,6 +250,17 @@ class MitsubaTruth:
             for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
                 if float(fx["aperture_occlusion"].get(k, 1.0) or 1.0) != 1.0:
                     out.append(f"aperture_occlusion {k} != 1 has no Mitsuba representation")
+        if "reflector" in fx:
+            p = fx["reflector"] or {}
+            if float(p.get("reflectance_scale", 1.0) or 1.0) != 1.0:
+                out.append("reflector reflectance_scale != 1 has no Mitsuba representation")
+            if p.get("lamps") not in (None, [], ()):
+                out.append("reflector 'lamps' (mirrors of some lamps only) has no Mitsuba representation")
+            for lamp, _ in ir.lamps_on(self.lighting):
+                refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
+                if refl is not None and refl.type != "plane":
+                    out.append(f"lamp {lamp.id!r}: reflector {lamp.reflector!r} is a {refl.type!r}; only "
+                               "plane mirrors have a Mitsuba representation here")
         if "diffuser" in fx and ir.diffuser is not None:
             d, p = ir.diffuser, fx["diffuser"]
             sc = d.scattering
@@ -376,6 +394,28 @@ class MitsubaTruth:
                     "bsdf": self._bsdf(refl)}
         return out
 
+    def _mirrors(self) -> dict:
+        """One conductor rectangle per lamp that is on and has a reflector (``reflector`` on)."""
+        if "reflector" not in self.effects:
+            return {}
+        from lbscene.engine.light.effects.builtin.reflector import mirror_rect
+
+        ir = self.ir
+        out = {}
+        for lamp, _ in ir.lamps_on(self.lighting):
+            refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
+            if refl is None:
+                continue
+            r = mirror_rect(ir, lamp, refl)
+            n, u = _unit(r.normal), _unit(r.u)
+            out[f"mirror_{lamp.id}"] = {
+                "type": "rectangle",
+                "to_world": _mi().ScalarTransform4f(
+                    _frame(u, np.cross(n, u), n, np.asarray(r.centre, float), r.half[0], r.half[1], 1.0).tolist()),
+                "bsdf": {"type": "conductor", "material": "none",
+                         "specular_reflectance": _spectrum(np.clip(refl.reflectance.array_1nm, 0.0, 1.0))}}
+        return out
+
     def _diffuser(self) -> dict:
         d = self.ir.diffuser
         if "diffuser" not in self.effects or d is None:
@@ -411,6 +451,7 @@ class MitsubaTruth:
         scene.update(self._surfaces())
         scene.update(self._lamp_shapes())
         scene.update(self._occluders())
+        scene.update(self._mirrors())
         scene.update(self._diffuser())
         film = {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}
         for k, (name, sens) in enumerate(film_bands.items()):
