@@ -9,8 +9,30 @@ slab's Fresnel law, or the rough slab's :math:`T(θ)` for a ``roughness`` plate,
 occluders' rectangles with their openings.  They are defined here, once, below the effect
 plugins that use them.
 
-Transmittances are relative to the clear slab's at normal incidence :math:`T_0`: times
-the declared transmittance :math:`T_\\text{decl}(λ) = a^2 T_0` they are the plate's.
+The declared ``transmittance`` :math:`T_\\text{decl}(λ)` is what a datasheet or a
+spectrophotometer gives: the plate's *total* transmittance at normal incidence (regular and
+scattered light together).  Each plate type has its own non-absorbing model (the clear slab,
+the rough GGX slab, the opal plate below) with total normal transmittance :math:`T_\\text{ref}`
+(:func:`reference_transmittance`); the bulk absorption is what is left,
+
+.. math:: a^2(λ) = T_\\text{decl}(λ) / T_\\text{ref},
+
+and the transmittances here are relative to :math:`T_\\text{ref}`: times :math:`T_\\text{decl}`
+they are the plate's.  (A rough slab transmits less than the clear one at normal incidence,
+0.81 instead of 0.925 for PMMA with GGX α 0.3: dividing a declared 0.81 by the clear slab's
+value would apply the rough slab's own losses twice.)
+
+An opal (``lambertian``) plate is a scattering layer behind two smooth faces of index
+:math:`n`: light enters with the face's Fresnel transmittance :math:`1 - F(θ_i)`, the
+scattered part leaves the bottom face with radiance proportional to :math:`1 - F(θ_o)`
+(the internal diffuse field refracted out), so its exit law is
+
+.. math:: L(θ_o) = \\frac{M}{π}\\,\\frac{1 - F(θ_o)}{1 - F_h}, \\qquad
+          F_h = 2\\int_0^1 F(μ)\\,μ\\,dμ,
+
+and its reflectance is :math:`R(θ_i) = F(θ_i) + (1 - F(θ_i))\\,r_\\text{int}` with
+:math:`r_\\text{int} = (R_\\text{decl} - F_0)/(1 - F_0)`; without a declared reflectance the plate
+does not absorb, :math:`R_\\text{decl} = 1 - T_\\text{decl}`.
 
 Examples
 --------
@@ -26,9 +48,17 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import Rectangle
-from .rough_slab import clear_slab_normal_transmittance, fresnel_slab_transmittance, rough_slab
+from .rough_slab import fresnel_slab_transmittance, rough_slab
 
 __all__ = [
+    "reference_transmittance",
+    "absorption_squared",
+    "interface_fresnel",
+    "opal_entry_relative",
+    "opal_exit_shape",
+    "plate_reflectance",
+    "plate_hemispherical_reflectance",
+    "opal_declared_reflectance",
     "diffuser_rect",
     "diffuser_fraction",
     "diffuser_transmittance_1nm",
@@ -37,6 +67,7 @@ __all__ = [
     "slab_relative",
     "fresnel_relative",
     "FresnelWeight",
+    "OpalEntryWeight",
     "plate_lobe_footprint_mm",
     "plate_diffuse_light_factor",
     "occluder_rects",
@@ -88,12 +119,13 @@ def plate_slab(ir):
 
 
 def slab_relative(ir, cos_i) -> np.ndarray:
-    """The plate's directional transmittance at incidence ``cos_i`` relative to the clear slab's
-    at normal incidence, :math:`T(θ_i)/T_0`: the rough slab's (:mod:`~lbscene.engine.light.rough_slab`)
-    for a ``roughness`` plate, the clear slab's Fresnel law otherwise.  Times the declared
-    transmittance :math:`T_\\text{decl}(λ) = a^2 T_0` it is the plate's transmittance."""
+    """The plate's directional transmittance at incidence ``cos_i`` relative to its own at
+    normal incidence, :math:`T(θ_i)/T_\\text{ref}`: the rough slab's
+    (:mod:`~lbscene.engine.light.rough_slab`) for a ``roughness`` plate, the clear slab's
+    Fresnel law otherwise (an opal plate's regular part).  Times the declared total
+    transmittance :math:`T_\\text{decl}(λ) = a^2 T_\\text{ref}` it is the plate's."""
     if is_rough(ir):
-        return plate_slab(ir).transmittance(cos_i) / clear_slab_normal_transmittance(ir.diffuser.ior)
+        return plate_slab(ir).transmittance(cos_i) / reference_transmittance(ir)
     return fresnel_relative(cos_i, ir.diffuser.ior)
 
 
@@ -136,9 +168,120 @@ def plate_diffuse_light_factor(ir) -> float:
     normal-incidence transmittance: :math:`T_h/T_0` with :math:`T_h = 2\\int_0^1 T(μ) μ\\,dμ`
     of the rough slab; 1 for other plates (their declared transmittance is used as is)."""
     if not is_rough(ir):
-        return 1.0
-    return float(plate_slab(ir).hemispherical_transmittance()) / \
-        clear_slab_normal_transmittance(ir.diffuser.ior)
+        d = ir.diffuser
+        if d.scattering.get("type") != "lambertian":
+            return _hemispherical(lambda mu: fresnel_relative(mu, d.ior))
+        fd = float(d.scattering["diffuse_fraction"])
+        return (1.0 - fd) * _hemispherical(lambda mu: fresnel_relative(mu, d.ior)) + \
+            fd * _hemispherical(lambda mu: opal_entry_relative(mu, d.ior))
+    return float(plate_slab(ir).hemispherical_transmittance()) / reference_transmittance(ir)
+
+
+def _hemispherical(f) -> float:
+    """:math:`2\\int_0^1 f(μ)\\,μ\\,dμ` (Gauss–Legendre)."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    mu = 0.5 * (x + 1.0)
+    return float(np.sum(w * f(mu) * mu))
+
+
+def reference_transmittance(ir) -> float:
+    """:math:`T_\\text{ref}`: the plate model's own total transmittance at normal incidence
+    without absorption — the rough slab's :math:`T(0°)` for a ``roughness`` plate, 1 for the
+    others (their laws, :func:`fresnel_relative` and :func:`opal_entry_relative`, are already
+    relative to normal incidence).  The declared transmittance over it is the absorption
+    :math:`a^2` (:func:`absorption_squared`)."""
+    if is_rough(ir):
+        return float(plate_slab(ir).transmittance(np.ones(1))[0])
+    return 1.0
+
+
+def absorption_squared(ir, transmittance) -> np.ndarray:
+    """:math:`a^2 = T_\\text{decl}/T_\\text{ref}` clipped to [0, 1] (``transmittance``: the
+    declared total normal transmittance, any shape)."""
+    return np.clip(np.asarray(transmittance, float) / reference_transmittance(ir), 0.0, 1.0)
+
+
+def interface_fresnel(cos_i, ior: float) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of one smooth face (from air, index ``ior``)."""
+    c = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
+    st = np.sqrt(np.clip(1.0 - c * c, 0.0, None)) / ior
+    ct = np.sqrt(np.clip(1.0 - st * st, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = ((c - ior * ct) / (c + ior * ct)) ** 2
+        rp = ((ior * c - ct) / (ior * c + ct)) ** 2
+    return np.where(c > 0, 0.5 * (rs + rp), 1.0)
+
+
+def opal_entry_relative(cos_i, ior: float) -> np.ndarray:
+    """Light entering an opal plate at incidence ``cos_i`` relative to normal incidence,
+    :math:`(1 - F(θ_i))/(1 - F_0)`."""
+    return (1.0 - interface_fresnel(cos_i, ior)) / (1.0 - interface_fresnel(np.ones(1), ior)[0])
+
+
+def opal_exit_shape(cos_o, ior: float) -> np.ndarray:
+    """An opal plate's scattered radiance at exit angle ``cos_o`` relative to a Lambertian
+    emitter of the same exitance, :math:`(1 - F(θ_o))/(1 - F_h)`."""
+    fh = _hemispherical(lambda mu: interface_fresnel(mu, ior))
+    return (1.0 - interface_fresnel(cos_o, ior)) / (1.0 - fh)
+
+
+def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
+    """Directional-hemispherical reflectance of the plate (either face) at incidence ``cos_i``
+    (shape ``S``) for a declared total normal transmittance ``transmittance`` (shape ``B``);
+    shape ``S + B``.
+
+    * ``roughness``: the rough slab's :math:`R_\\text{top}(μ) + a^2 R_\\text{int}(μ)`;
+    * ``lambertian`` (opal): :math:`F(μ) + (1 - F(μ))\\,r_\\text{int}` with the declared
+      ``reflectance`` (default :math:`1 - T_\\text{decl}`: no absorption), its regular part
+      :math:`1 - f_d` as a clear plate;
+    * a clear plate: :math:`1 - T_\\text{slab}(μ)` (its absorption neglected).
+    """
+    d = ir.diffuser
+    mu = np.asarray(cos_i, float)[..., None]
+    T = np.asarray(transmittance, float)
+    if is_rough(ir):
+        a2 = absorption_squared(ir, T)
+        s = plate_slab(ir)
+        return s.reflectance(mu, np.sqrt(a2))
+    clear = 1.0 - fresnel_slab_transmittance(mu, d.ior) + 0.0 * T
+    if d.scattering.get("type") != "lambertian":
+        return clear
+    fd = float(d.scattering["diffuse_fraction"])
+    R = opal_declared_reflectance(ir, T)
+    F = interface_fresnel(mu, d.ior)
+    F0 = float(interface_fresnel(np.ones(1), d.ior)[0])
+    r_int = np.clip((R - F0) / (1.0 - F0), 0.0, 1.0)
+    return (1.0 - fd) * clear + fd * (F + (1.0 - F) * r_int)
+
+
+def opal_declared_reflectance(ir, transmittance) -> np.ndarray:
+    """An opal plate's total normal reflectance: the declared ``reflectance`` of its
+    ``scattering`` when given, else :math:`1 - T_\\text{decl}` (a plate that does not absorb)."""
+    R = ir.diffuser.scattering.get("reflectance")
+    if R is None:
+        return 1.0 - np.asarray(transmittance, float)
+    return np.broadcast_to(np.asarray(R, float), np.shape(transmittance))
+
+
+def plate_hemispherical_reflectance(ir, transmittance) -> np.ndarray:
+    """Reflectance of the plate for diffuse (Lambertian) light, :math:`2\\int_0^1 R(μ) μ\\,dμ`,
+    per value of ``transmittance``."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    mu = 0.5 * (x + 1.0)
+    R = plate_reflectance(ir, mu, transmittance)              # (64, B)
+    return np.einsum("k,kb->b", w * mu, R.reshape(len(mu), -1)).reshape(np.shape(transmittance))
+
+
+class OpalEntryWeight:
+    """Incidence weight of light entering an opal plate's scattering layer,
+    :func:`opal_entry_relative`; ``cache_key`` as :class:`FresnelWeight`'s."""
+
+    def __init__(self, ior: float):
+        self.ior = float(ior)
+        self.cache_key = ("opal_entry", self.ior)
+
+    def __call__(self, cos_i):
+        return opal_entry_relative(cos_i, self.ior)
 
 
 # --------------------------------------------------------------------------- occluders

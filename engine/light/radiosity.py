@@ -319,12 +319,41 @@ def _box_cut_planes(ir, occluders) -> list[tuple[np.ndarray, np.ndarray]]:
     return planes
 
 
+#: material id of the diffuser plate's patches (its reflectance comes from the plate model,
+#: :func:`lbscene.engine.light.plates.plate_hemispherical_reflectance`)
+PLATE_MATERIAL = "diffuser-plate"
+
+
+def plate_patches(ir, patch_size_mm: float) -> Patches:
+    """Both faces of the diffuser plate as patches: the top face (normal +z, at the plate's
+    mid-plane + half its thickness, facing the luminaire above) and the bottom face (normal
+    −z, facing the booth).  They reflect with the plate's hemispherical reflectance; light
+    crossing the plate between the two sides is the transport's plate transmittance
+    (:class:`RadiosityTransport`)."""
+    d = ir.diffuser
+    (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
+    nu = max(1, int(np.ceil(sx / patch_size_mm)))
+    nv = max(1, int(np.ceil(sy / patch_size_mm)))
+    out = []
+    for sign, name in ((1.0, "plate:top"), (-1.0, "plate:bottom")):
+        z = d.z_mm + sign * d.thickness_mm / 2
+        a, b = np.array([cx - sx / 2, cy - sy / 2, z]), np.array([cx + sx / 2, cy - sy / 2, z])
+        c, e = np.array([cx + sx / 2, cy + sy / 2, z]), np.array([cx - sx / 2, cy + sy / 2, z])
+        # counter-clockwise seen from the side the face looks at
+        q = _grid_quad(a, b, c, e, nu, nv) if sign > 0 else _grid_quad(a, e, c, b, nv, nu)
+        n = np.tile([0.0, 0.0, sign], (len(q), 1))
+        out.append(Patches(q, n, quad_areas(q), np.array([PLATE_MATERIAL] * len(q), object),
+                           np.array([name] * len(q), object)))
+    return _concat_patches(out)
+
+
 def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, occluders=(),
-                     mesh_patch_mm: float | None = None) -> Patches:
+                     mesh_patch_mm: float | None = None, plate: bool = False) -> Patches:
     """Patches of the box surfaces, refined near ``lamps`` (default: every lamp; the
     transport passes the lamps a lighting turns on), plus both faces of every mesh triangle
     when ``meshes`` (at :func:`mesh_patch_size_mm`) and of every occluder of ``occluders``
-    that has a material (:func:`occluder_patches`)."""
+    that has a material (:func:`occluder_patches`), and both faces of the diffuser plate when
+    ``plate`` (:func:`plate_patches`)."""
     # walls are cut at a diffuser plate's height, and surfaces along the plane of an occluder
     # that stands on them: no patch straddles a plate or a panel
     z_cuts = (ir.diffuser.z_mm,) if ir.diffuser is not None else ()
@@ -340,6 +369,8 @@ def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, 
     if m is not None and o is not None:
         m, o = _coplanar_cover(m, o, occluders, mesh_triangles(ir))
     parts += [x for x in (m, o) if x is not None and len(x)]
+    if plate and ir.diffuser is not None:
+        parts.append(plate_patches(ir, patch_size_mm))
     return parts[0] if len(parts) == 1 else _concat_patches(parts)
 
 
@@ -523,11 +554,13 @@ class RadiosityTransport:
         # occluders cut the box's patches where they stand on it; with a material, they
         # reflect (both faces are patches), as the booth declares
         occ_key = _body_signature([(f"{o.id}:{o.material}", r) for o, r in occluders])
-        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key)
+        # the diffuser plate reflects from both faces: its faces are patches
+        plate = "diffuser" in ctx.effects and ir.diffuser is not None
+        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key, plate)
         if key not in ctx.cache:
             lamps = [lp for lp in ir.lamps if lp.id in lit]
             patches = interior_patches(ir, p.patch_size_mm, p.meshes, lamps=lamps, occluders=occluders,
-                                       mesh_patch_mm=p.mesh_patch_size_mm)
+                                       mesh_patch_mm=p.mesh_patch_size_mm, plate=plate)
             from lbscene.engine.files.limits import check_work
 
             check_work("patches", len(patches.polys),
@@ -552,12 +585,20 @@ class RadiosityTransport:
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
-        rk = key + ("rho", p.reflectance_scale)
+        plate_R = None
+        if plate:
+            from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance
+
+            T_bands = ir.grid.integrate(diffuser_transmittance_1nm(ctx, ctx.params("diffuser")))
+            plate_R = plate_hemispherical_reflectance(ir, T_bands)                      # (B,)
+        rk = key + ("rho", p.reflectance_scale, None if plate_R is None else tuple(np.round(plate_R, 9)))
         if rk not in ctx.cache:
             mats = ir.materials
-            rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
-                len(self.patches), -1)
-            ctx.cache[rk] = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
+            rho = np.array([plate_R if m == PLATE_MATERIAL else mats[m].reflectance.array_bands
+                            for m in self.patches.material]).reshape(len(self.patches), -1)
+            # the plate's reflectance is the plate model's, not a surface material's
+            scale = np.where(self.patches.material == PLATE_MATERIAL, 1.0, p.reflectance_scale)[:, None]
+            ctx.cache[rk] = np.clip(rho * scale, 0.0, 0.99)                            # (P, B)
         self.rho = ctx.cache[rk]
         self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
@@ -615,7 +656,8 @@ class RadiosityTransport:
         nrm = np.concatenate(nrm_l)
         # nudge off the surface so paths leaving a patch never count it as an occluder
         terms = self._transport_model().first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
-                                                          pair_factor=self._lamp_visibility())
+                                                          pair_factor=self._plate_directional(
+                                                              self._lamp_visibility()))
         E0 = np.zeros((len(patches), len(terms)))
         for k, t in enumerate(terms):
             E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
@@ -721,6 +763,38 @@ class RadiosityTransport:
                                    limit=64)
                 f = fb if f is None else f * fb
             return f
+
+        return factor
+
+    def _plate_directional(self, base):
+        """``base`` (a pair factor, or None) times, on the plate's top face, the plate's
+        directional reflectance relative to its hemispherical one, :math:`R(θ_i)/R_h`: the lamps'
+        light reaches the plate at its own incidence, while the patch reflects with
+        :math:`R_h` (:func:`lbscene.engine.light.plates.plate_reflectance`; at the bands' mean
+        absorption)."""
+        ir = self.ctx.ir
+        if not (self.patches.material == PLATE_MATERIAL).any():
+            return base
+        from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance, plate_reflectance
+
+        d = ir.diffuser
+        T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, self.ctx.params("diffuser")))))
+        Rh = float(plate_hemispherical_reflectance(ir, np.array([T]))[0])
+        z_top = d.z_mm + d.thickness_mm / 2
+        lo = np.array([d.centre_mm[0] - d.size_mm[0] / 2, d.centre_mm[1] - d.size_mm[1] / 2])
+        hi = np.array([d.centre_mm[0] + d.size_mm[0] / 2, d.centre_mm[1] + d.size_mm[1] / 2])
+
+        def factor(es, P):
+            f = None if base is None else base(es, P)
+            on = (np.abs(P[:, 2] - z_top) < 10 * NUDGE_MM) & np.all((P[:, :2] >= lo - 1e-6) &
+                                                                    (P[:, :2] <= hi + 1e-6), axis=1)
+            if not on.any() or Rh <= 0:
+                return f
+            d_ = es.points_mm[None, :, :] - P[on][:, None, :]
+            cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
+            w = np.ones((len(P), len(es.points_mm)))
+            w[on] = plate_reflectance(ir, cos_i, np.array([T]))[..., 0] / Rh
+            return w if f is None else f * w
 
         return factor
 
