@@ -23,16 +23,24 @@ they are the plate's.  (A rough slab transmits less than the clear one at normal
 value would apply the rough slab's own losses twice.)
 
 An opal (``lambertian``) plate is a scattering layer behind two smooth faces of index
-:math:`n`: light enters with the face's Fresnel transmittance :math:`1 - F(θ_i)`, the
-scattered part leaves the bottom face with radiance proportional to :math:`1 - F(θ_o)`
-(the internal diffuse field refracted out), so its exit law is
+:math:`n`.  Light enters with the face's Fresnel transmittance :math:`1 - F(θ_i)` and is
+first scattered at a depth proportional to the cosine of its refracted direction
+:math:`\\cos θ_t`; in the diffusion picture of the layer the part that leaves through the far
+face grows linearly with that depth, so its total transmittance at incidence :math:`θ_i`,
+relative to normal incidence, is
 
-.. math:: L(θ_o) = \\frac{M}{π}\\,\\frac{1 - F(θ_o)}{1 - F_h}, \\qquad
-          F_h = 2\\int_0^1 F(μ)\\,μ\\,dμ,
+.. math:: t(θ_i) = \\frac{1 - F(θ_i)}{1 - F_0}\\,\\bigl(a + (1 - a)\\cos θ_t\\bigr),
 
-and its reflectance is :math:`R(θ_i) = F(θ_i) + (1 - F(θ_i))\\,r_\\text{int}` with
-:math:`r_\\text{int} = (R_\\text{decl} - F_0)/(1 - F_0)`; without a declared reflectance the plate
-does not absorb, :math:`R_\\text{decl} = 1 - T_\\text{decl}`.
+with :math:`a` = :data:`OPAL_LAYER_CONSTANT` (the extrapolation length over the sum of it and
+the transport length; 0.55 puts two Mitsuba opal plates, 3 mm T 0.55 and 2 mm T 0.40, within
+2 % of this law to 70°).  By reciprocity the scattered light leaves with the same law,
+
+.. math:: L(θ_o) = \\frac{M}{π}\\,\\frac{t(θ_o)}{t_h}, \\qquad t_h = 2\\int_0^1 t(μ)\\,μ\\,dμ,
+
+and what does not leave through the far face (nor is absorbed, in the same proportion) comes
+back: :math:`R(θ_i) = 1 - T(θ_i) - A_0\\,t(θ_i)`, with :math:`A_0 = 1 - T_\\text{decl} -
+R_\\text{decl}` and the declared normal reflectance :math:`R_\\text{decl}` (default
+:math:`1 - T_\\text{decl}`: a plate that does not absorb).
 
 Examples
 --------
@@ -68,10 +76,16 @@ __all__ = [
     "fresnel_relative",
     "FresnelWeight",
     "OpalEntryWeight",
+    "OPAL_LAYER_CONSTANT",
     "plate_lobe_footprint_mm",
     "plate_diffuse_light_factor",
     "occluder_rects",
 ]
+
+
+#: an opal plate's layer constant :math:`a` (module docstring): the part of its scattered
+#: transmittance that does not depend on the depth the light first scatters at
+OPAL_LAYER_CONSTANT = 0.55
 
 
 # --------------------------------------------------------------------------- the diffuser plate
@@ -213,16 +227,21 @@ def interface_fresnel(cos_i, ior: float) -> np.ndarray:
 
 
 def opal_entry_relative(cos_i, ior: float) -> np.ndarray:
-    """Light entering an opal plate at incidence ``cos_i`` relative to normal incidence,
-    :math:`(1 - F(θ_i))/(1 - F_0)`."""
-    return (1.0 - interface_fresnel(cos_i, ior)) / (1.0 - interface_fresnel(np.ones(1), ior)[0])
+    """An opal plate's scattered transmittance at incidence ``cos_i`` relative to normal
+    incidence, :math:`t(θ_i) = (1 - F(θ_i))/(1 - F_0)\\,(a + (1 - a)\\cos θ_t)` (module docstring)."""
+    c = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
+    cos_t = np.sqrt(np.clip(1.0 - (1.0 - c * c) / (ior * ior), 0.0, 1.0))
+    a = OPAL_LAYER_CONSTANT
+    return (1.0 - interface_fresnel(c, ior)) / (1.0 - interface_fresnel(np.ones(1), ior)[0]) * \
+        (a + (1.0 - a) * cos_t)
 
 
 def opal_exit_shape(cos_o, ior: float) -> np.ndarray:
     """An opal plate's scattered radiance at exit angle ``cos_o`` relative to a Lambertian
-    emitter of the same exitance, :math:`(1 - F(θ_o))/(1 - F_h)`."""
-    fh = _hemispherical(lambda mu: interface_fresnel(mu, ior))
-    return (1.0 - interface_fresnel(cos_o, ior)) / (1.0 - fh)
+    emitter of the same exitance, :math:`t(θ_o)/t_h` (reciprocity with
+    :func:`opal_entry_relative`)."""
+    th = _hemispherical(lambda mu: opal_entry_relative(mu, ior))
+    return opal_entry_relative(cos_o, ior) / th
 
 
 def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
@@ -231,9 +250,10 @@ def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
     shape ``S + B``.
 
     * ``roughness``: the rough slab's :math:`R_\\text{top}(μ) + a^2 R_\\text{int}(μ)`;
-    * ``lambertian`` (opal): :math:`F(μ) + (1 - F(μ))\\,r_\\text{int}` with the declared
-      ``reflectance`` (default :math:`1 - T_\\text{decl}`: no absorption), its regular part
-      :math:`1 - f_d` as a clear plate;
+    * ``lambertian`` (opal): :math:`1 - T(μ) - A_0\\,t(μ)`, :math:`T(μ)` its total
+      transmittance (regular part as a clear plate, scattered part :math:`t(μ)`) and
+      :math:`A_0 = 1 - T_\\text{decl} - R_\\text{decl}` what it absorbs at normal incidence, with
+      the declared ``reflectance`` (default :math:`1 - T_\\text{decl}`: no absorption);
     * a clear plate: :math:`1 - T_\\text{slab}(μ)` (its absorption neglected).
     """
     d = ir.diffuser
@@ -247,11 +267,10 @@ def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
     if d.scattering.get("type") != "lambertian":
         return clear
     fd = float(d.scattering["diffuse_fraction"])
-    R = opal_declared_reflectance(ir, T)
-    F = interface_fresnel(mu, d.ior)
-    F0 = float(interface_fresnel(np.ones(1), d.ior)[0])
-    r_int = np.clip((R - F0) / (1.0 - F0), 0.0, 1.0)
-    return (1.0 - fd) * clear + fd * (F + (1.0 - F) * r_int)
+    t = opal_entry_relative(mu, d.ior)
+    T_theta = T * ((1.0 - fd) * fresnel_relative(mu, d.ior) + fd * t)
+    A0 = np.clip(1.0 - T - opal_declared_reflectance(ir, T), 0.0, 1.0)      # absorbed at 0°
+    return np.clip(1.0 - T_theta - A0 * t, 0.0, 1.0)
 
 
 def opal_declared_reflectance(ir, transmittance) -> np.ndarray:

@@ -176,10 +176,14 @@ _PLATE_CACHE: dict = {}
 
 def plate_bsdf(scattering: dict, ior: float) -> dict:
     """The plate's faces: ``roughdielectric`` (GGX, α = roughness²) for a ``roughness``
-    plate, smooth ``dielectric`` for an opal one."""
+    plate, smooth ``dielectric`` for an opal one (``null``, no interface, for ior 1)."""
     if scattering.get("type") == "roughness":
         return {"type": "roughdielectric", "distribution": "ggx",
                 "alpha": max(float(scattering["roughness"]) ** 2, 1e-4), "int_ior": float(ior), "ext_ior": 1.0}
+    if ior <= 1.0 + 1e-9:
+        # index-matched faces: no interface, the medium alone (lamps are reached by next-event
+        # estimation through it)
+        return {"type": "null"}
     return {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}
 
 

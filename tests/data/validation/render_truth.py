@@ -46,14 +46,14 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           "rough-diffuser-r030",
           "rough-diffuser-r010",
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
-          "opal-black", "rough-cavity-45")
+          "rough-cavity-45")
 #: the forward model's RMS deviation from the truth allowed per scene (percent, the truth's noise
 #: removed in quadrature): tests/engine/test_model_vs_truth.py and benchmarks/bench_truth.py
 THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "cavity-aperture": 1.5,
                       "cavity-white": 1.5, "mesh-cavity": 1.5,
                       "rough-diffuser-r030": 2.0, "rough-diffuser-r010": 2.0,
                       # plates
-                      "opal-black": 0.5, "rough-cavity-45": 1.0}
+                      "rough-cavity-45": 1.0}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.0015
