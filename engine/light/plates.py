@@ -79,6 +79,7 @@ __all__ = [
     "OPAL_LAYER_CONSTANT",
     "plate_lobe_footprint_mm",
     "plate_diffuse_light_factor",
+    "plate_directional_relative",
     "occluder_rects",
 ]
 
@@ -189,6 +190,20 @@ def plate_diffuse_light_factor(ir) -> float:
         return (1.0 - fd) * _hemispherical(lambda mu: fresnel_relative(mu, d.ior)) + \
             fd * _hemispherical(lambda mu: opal_entry_relative(mu, d.ior))
     return float(plate_slab(ir).hemispherical_transmittance()) / reference_transmittance(ir)
+
+
+def plate_directional_relative(ir, cos_i) -> np.ndarray:
+    """The plate's total directional transmittance at ``cos_i`` relative to its own at normal
+    incidence (regular and scattered parts): the rough slab's :math:`T(θ)/T_\\text{ref}`, an opal
+    plate's :math:`(1 - f_d) T_\\text{slab}(θ)/T_\\text{slab}(0) + f_d\\,t(θ)`, the clear slab's
+    law.  By reciprocity it is also the radiance seen through the plate along ``cos_i`` under a
+    uniform sky on its other side, relative to normal incidence: the factor, times the declared
+    total transmittance, of inter-reflected light crossing the plate along a line."""
+    d = ir.diffuser
+    if is_rough(ir) or d.scattering.get("type") != "lambertian":
+        return slab_relative(ir, cos_i)
+    fd = float(d.scattering["diffuse_fraction"])
+    return (1.0 - fd) * fresnel_relative(cos_i, d.ior) + fd * opal_entry_relative(cos_i, d.ior)
 
 
 def _hemispherical(f) -> float:

@@ -602,22 +602,26 @@ class RadiosityTransport:
         self.rho = ctx.cache[rk]
         self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
-        # transmits inter-reflected light with its regular transmittance; a rough slab with
-        # its hemispherical transmittance (diffuse light, plate_diffuse_light_factor)
+        # transmits inter-reflected light along each line between two patches with its directional
+        # transmittance at that line's incidence (plate_directional_relative, times the declared
+        # total): by reciprocity, the radiance seen through a plate along θ under a uniform sky is
+        # T(θ) times the sky's, so each line's share is T(θ), and a Lambertian source's light
+        # crosses with the hemispherical T_h in total.  (A constant T_h on every line, as before,
+        # put the light of a white cavity that reaches the booth below through a rough PMMA
+        # plate 14 % under Mitsuba 3: the lines to the floor are steep, where T(θ) > T_h.)
         self.plate_T = None
         self.cross_pp = None
         if "diffuser" in ctx.effects and ir.diffuser is not None:
             from .geometry import segment_hits_rectangle
-            from .plates import diffuser_rect, diffuser_transmittance_1nm, plate_diffuse_light_factor
+            from .plates import diffuser_rect, diffuser_transmittance_1nm
 
             dp = ctx.params("diffuser")
             self.plate_rect = diffuser_rect(ir)
-            self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp)) * \
-                plate_diffuse_light_factor(ir)                                          # (B,)
-            ck = key + ("plate_cross",)
+            self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp))       # (B,) declared
+            ck = key + ("plate_cross", ir.diffuser.ior, json.dumps(ir.diffuser.scattering, sort_keys=True))
             if ck not in ctx.cache:
                 c = self.patches.centres
-                ctx.cache[ck] = segment_hits_rectangle(c, c, self.plate_rect)
+                ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
             self.cross_pp = ctx.cache[ck]
         self._B = None
         self._terms = None
@@ -1015,10 +1019,25 @@ class RadiosityTransport:
                 sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
         self._B = np.stack([sol[i] for i in inv])
 
+    def _plate_line_factor(self, A, B, cross) -> np.ndarray:
+        """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
+        else minus the plate's directional transmittance at the line's incidence relative to
+        normal incidence (negative marks a crossing: :meth:`_F_band` multiplies those by the
+        declared total transmittance)."""
+        from .plates import plate_directional_relative
+
+        d = A[:, None, :] - B[None, :, :]
+        cos = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+        return np.where(cross, -plate_directional_relative(self.ctx.ir, cos), 1.0)
+
+    def _crossed(self, M, S, T):
+        """``M`` with the entries whose lines cross the plate (``S`` < 0) times ``T·|S|``."""
+        return np.where(S < 0, M * (-S) * T, M)
+
     def _F_band(self, T):
         if T is None or self.cross_pp is None:
             return self.F
-        return np.where(self.cross_pp, self.F * T, self.F)
+        return self._crossed(self.F, self.cross_pp, T)
 
     # ------------------------------------------------------------------ receivers
     def patch_radiosity(self) -> np.ndarray:
@@ -1050,10 +1069,11 @@ class RadiosityTransport:
             from .geometry import segment_hits_rectangle
 
             cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
+            S_rx = self._plate_line_factor(P_rx, self.patches.centres, cross)
         ops = []
         for j, u in enumerate(uniq):
             r = u[:Pn]
-            Gj = G if self.plate_T is None else np.where(cross, G * u[Pn], G)
+            Gj = G if self.plate_T is None else self._crossed(G, S_rx, u[Pn])
             n_it = self._neumann_terms(u)
             if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
                 A = r[:, None] * self._F_band(u[Pn] if u.size > Pn else None)

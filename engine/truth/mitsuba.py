@@ -155,12 +155,6 @@ def _frame(x, y, z, origin, sx, sy, sz):
     return m
 
 
-def _clear_slab_T(ior: float) -> float:
-    """Normal-incidence transmittance of a clear non-absorbing slab: (1−R)/(1+R), R = ((n−1)/(n+1))²."""
-    r = ((ior - 1.0) / (ior + 1.0)) ** 2
-    return (1.0 - r) / (1.0 + r)
-
-
 #: samples per pass and passes of a plate measurement (:func:`plate_optics`): the rough slab's
 #: T(0°) to about ±0.0002
 PLATE_SPP = 65536

@@ -140,8 +140,10 @@ def test_diffuse_light_crosses_a_rough_plate_with_its_hemispherical_transmittanc
     assert plates.plate_diffuse_light_factor(smooth) == pytest.approx(Th / T0, abs=3e-3)
     # rougher: less (light lost to the microfacets and trapped at grazing incidence)
     assert plates.plate_diffuse_light_factor(ir) < plates.plate_diffuse_light_factor(smooth)
-    # an opal plate: diffuse light enters through its smooth top face, (1 − F(θ))/(1 − F(0))
-    # averaged over the hemisphere (closed form, integrated here)
+    # an opal plate: diffuse light enters through its smooth top face, (1 − F(θ))/(1 − F(0)), and
+    # the layer passes the part a + (1 − a) cos θ_t of it, averaged over the hemisphere (integrated here)
     F0 = R0
+    a = plates.OPAL_LAYER_CONSTANT
+    cos_t = np.sqrt(1 - (1 - mu ** 2) / n ** 2)
     opal = plates.plate_diffuse_light_factor(_ir_with(ir, type="lambertian", diffuse_fraction=1.0))
-    assert opal == pytest.approx(np.sum(w * (1 - R) * mu) / (1 - F0), abs=1e-3)
+    assert opal == pytest.approx(np.sum(w * (1 - R) * (a + (1 - a) * cos_t) * mu) / (1 - F0), abs=1e-3)
