@@ -582,6 +582,13 @@ class RadiosityTransport:
             if bk not in ctx.cache:
                 ctx.cache[bk] = self._F_past_bodies(self.F)
             self.F = ctx.cache[bk]
+        # the plate's faces are seen only from the side they face: a polygon form factor does not
+        # tell a face from its back, and the plate is no blocker (light crossing it is the line
+        # factor below), so the ceiling would see the bottom face through the plate
+        self._plate_faces = None
+        if plate:
+            self._plate_faces = self.patches.material == PLATE_MATERIAL
+            self.F = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres), 0.0, self.F)
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
@@ -1019,6 +1026,11 @@ class RadiosityTransport:
                 sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
         self._B = np.stack([sol[i] for i in inv])
 
+    def _in_front(self, P) -> np.ndarray:
+        """(len(P), patches): is point ``P[i]`` on the side patch ``j`` faces?"""
+        c, n = self.patches.centres, self.patches.normals
+        return ((P[:, None, :] - c[None, :, :]) * n[None, :, :]).sum(-1) > 0
+
     def _plate_line_factor(self, A, B, cross) -> np.ndarray:
         """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
         else minus the plate's directional transmittance at the line's incidence relative to
@@ -1103,6 +1115,8 @@ class RadiosityTransport:
         Vb = self._gather_past_bodies(P, G)
         if Vb is not None:
             G = G * Vb
+        if self._plate_faces is not None:
+            G = np.where(self._plate_faces[None, :] & ~self._in_front(P), 0.0, G)
         R = self._receiver_operators(G, P)
         ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
