@@ -614,6 +614,33 @@ class BlenderScene:
         s0 = (1.0 - r0) / (1.0 + r0)
         return nb.math("DIVIDE", s, s0)
 
+    def _opal_exit_shape(self, nb: _Nodes, ior: float):
+        """(1 − F(θ))/(1 − F_h): an opal plate's scattered radiance leaving through its smooth
+        face at the viewing angle θ, relative to a Lambertian emitter of the same exitance
+        (``lbscene.engine.light.plates.opal_exit_shape``); F the face's unpolarised Fresnel
+        reflectance, F_h its hemispherical mean."""
+        geo = nb.new("ShaderNodeNewGeometry")
+        dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
+        nb.link(geo.outputs["Incoming"], dot.inputs[0])
+        nb.link(geo.outputs["Normal"], dot.inputs[1])
+        ci = nb.math("MAXIMUM", nb.math("MINIMUM", nb.math("ABSOLUTE", dot.outputs["Value"]), 1.0), 1e-4)
+        n = float(ior)
+        sin2t = nb.math("DIVIDE", nb.math("SUBTRACT", 1.0, nb.math("MULTIPLY", ci, ci)), n * n)
+        ct = nb.math("SQRT", nb.math("MAXIMUM", nb.math("SUBTRACT", 1.0, sin2t), 0.0))
+
+        def ratio_sq(a, b):
+            r = nb.math("DIVIDE", nb.math("SUBTRACT", a, b), nb.math("MAXIMUM", nb.math("ADD", a, b), 1e-9))
+            return nb.math("MULTIPLY", r, r)
+
+        F = nb.math("MULTIPLY", nb.math("ADD", ratio_sq(ci, nb.math("MULTIPLY", ct, n)),
+                                        ratio_sq(ct, nb.math("MULTIPLY", ci, n))), 0.5)
+        mu = (np.arange(2000) + 0.5) / 2000
+        st = np.sqrt(1 - mu * mu) / n
+        ctt = np.sqrt(1 - st * st)
+        Fh = float(np.mean(2 * mu * 0.5 * (((mu - n * ctt) / (mu + n * ctt)) ** 2
+                                            + ((n * mu - ctt) / (n * mu + ctt)) ** 2)))
+        return nb.math("DIVIDE", nb.math("SUBTRACT", 1.0, F), 1.0 - Fh)
+
     def _sheet(self, sheet: TransmissiveSheet) -> None:
         import bpy
 
@@ -630,8 +657,9 @@ class BlenderScene:
             n = sheet.ior or 1.5
             glass.inputs["IOR"].default_value = n
             r0 = ((n - 1) / (n + 1)) ** 2
-            s0 = (1 - r0) / (1 + r0)
-            # Glass colour tints each of the two refractions: colour² = internal transmittance
+            s0 = (1 - r0) / (1 + r0) if sheet.reference_transmittance is None else sheet.reference_transmittance
+            # Glass colour tints each of the two refractions: colour² = the declared total
+            # transmittance over the non-absorbing plate's (the bulk absorption)
             colour = np.sqrt(np.clip(t / s0, 0.0, 1.0))
             nb.link(glass.outputs[0], out.inputs["Surface"])
             sock = glass.inputs["Color"]
@@ -654,7 +682,20 @@ class BlenderScene:
             nb.link(mult.outputs[2], transp.inputs["Color"])
             if d > 0:
                 transl = nb.new("ShaderNodeBsdfTranslucent")
-                nb.link(mult.outputs[2], transl.inputs["Color"])
+                if sheet.ior is not None:
+                    # the scattered part leaves with the opal exit law, not the clear plate's ratio
+                    mult_o = nb.new("ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
+                    mult_o.inputs["Factor"].default_value = 1.0
+                    comb_o = nb.new("ShaderNodeCombineColor")
+                    shape = self._opal_exit_shape(nb, sheet.ior)
+                    for ch in ("Red", "Green", "Blue"):
+                        nb.link(shape, comb_o.inputs[ch])
+                    nb.link(comb_o.outputs[0], mult_o.inputs[7])
+                    self._colour_setters.append(
+                        lambda idx, s=mult_o.inputs[6], v=t: setattr(s, "default_value", _rgb(v, idx)))
+                    nb.link(mult_o.outputs[2], transl.inputs["Color"])
+                else:
+                    nb.link(mult.outputs[2], transl.inputs["Color"])
                 mix = nb.new("ShaderNodeMixShader")
                 mix.inputs["Fac"].default_value = d
                 nb.link(transp.outputs[0], mix.inputs[1])

@@ -427,10 +427,18 @@ def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[Tran
                      f"at 60°) and its lobe (90 % within "
                      f"{float(plate_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
                      f"in the bake")
+    if fd > 0:
+        notes.append(f"diffuser diffuse fraction {float(fd):g}: the scattered light leaves the sheet with "
+                     f"the opal exit law; its entry weight (1 - F(θi)) and the plate's reflection are not "
+                     f"in the bake (the model has them)")
+    from lbscene.engine.light.plates import reference_transmittance
+
     return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
                               transmittance=tuple(float(x) for x in T), ior=d.ior,
                               roughness=float(sc.get("roughness", 0.0)),
                               diffuse_fraction=float(fd), thickness_mm=d.thickness_mm,
+                              reference_transmittance=(reference_transmittance(ir)
+                                                       if sc.get("type") == "roughness" else None),
                               group=lum_group)]
 
 

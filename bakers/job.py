@@ -402,12 +402,13 @@ class JobFilter(StrictModel):
 class TransmissiveSheet(StrictModel):
     """A diffuser plate or filter pane.
 
-    ``model='thin'`` (default): a non-refracting sheet.  Regular transmittance
-    ``transmittance`` (at normal incidence, surface reflections included); when
-    ``ior`` is set it falls with incidence angle like a clear plate's
-    Fresnel transmittance (both faces, incoherent multiple reflections),
+    ``model='thin'`` (default): a non-refracting sheet.  ``transmittance`` is the
+    plate's total transmittance at normal incidence (surface reflections included);
+    when ``ior`` is set its regular part falls with incidence angle like a clear
+    plate's Fresnel transmittance (both faces, incoherent multiple reflections),
     normalised to ``transmittance`` at 0°.  A ``diffuse_fraction`` of the
-    transmitted light is scattered Lambertian-ly (Translucent BSDF).  Light
+    transmitted light is scattered (Translucent BSDF), leaving with the opal exit
+    law (1 − F(θ))/(1 − F_h) at the viewing angle when ``ior`` is set.  Light
     goes straight through, so Cycles samples point lamps behind it directly
     (shadow rays are attenuated, not blocked); ``roughness`` is recorded but
     only blurs in the ``glass`` model (for the seed's 0.04, α = 0.0016: a spread
@@ -416,7 +417,9 @@ class TransmissiveSheet(StrictModel):
     ``model='glass'``: a closed slab of ``thickness_mm`` with Cycles' Glass BSDF
     (roughness, ior).  Physically complete but a refracting surface blocks
     shadow rays, so lamps behind it are reached only by path tracing
-    (caustics): use area emitters and many samples.
+    (caustics): use area emitters and many samples.  The absorption is the
+    declared ``transmittance`` over ``reference_transmittance`` (the
+    non-absorbing plate's total at normal incidence; default the clear slab's).
     """
 
     id: JobId
@@ -429,6 +432,7 @@ class TransmissiveSheet(StrictModel):
     diffuse_fraction: float = Field(0.0, ge=0, le=1)
     model: Literal["thin", "glass"] = "thin"
     thickness_mm: float = Field(4.0, gt=0)
+    reference_transmittance: float | None = Field(None, gt=0, le=1)
     group: str | None = None
 
     @field_validator("transmittance")

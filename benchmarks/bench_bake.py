@@ -12,8 +12,8 @@ Per booth (X-Rite SpectraLight QC · D65, BYK byko-spectra effect · FL950, ISO 
   the grid points (adaptive: up to a 1 % RMS noise target), wall time, grid noise;
 * **cross-check** (final quality): Cycles / analytic model − 1 at the grid points, direct
   light and with inter-reflection, mean and max |·| in percent, the bake's noise, and whether
-  the differences are the bake's noise alone (``within``: mean within 3 standard errors, χ²
-  test at p 0.001; :attr:`lbscene.bakers.crosscheck.CrossCheck.within_noise`).
+  the two engines agree (``agree``: mean within 3 standard errors, χ² test at p 0.001, the
+  bake's noise and the model's 0.1 % floor; :attr:`lbscene.bakers.crosscheck.CrossCheck.agrees`).
 
 Times are also given as ratios to a baseline measured in the same run: a one-sensor,
 one-lamp bake (16 samples), i.e. the fixed cost of a bake process (Python + bpy start,
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
     print(f"baseline: one-sensor bake (process start, bpy, scene, products) {base:.2f} s\n")
     hdr = (f"{'booth':32s} {'lighting':8s} {'preview s':>10s} {'(×base)':>8s} {'final spp':>9s} "
            f"{'final s':>8s} {'grid noise %':>12s} {'direct mean/max %':>18s} {'inter mean/max %':>17s} "
-           f"{'xc noise d/i %':>14s} {'within noise d/i':>16s}")
+           f"{'xc noise d/i %':>14s} {'agree d/i':>16s}")
     print(hdr)
     print("-" * len(hdr))
     for r in rows:
@@ -123,7 +123,7 @@ def main(argv=None) -> int:
 
         noise = "/".join("—" if x.get(m) is None else f"{x[m]['noise_rms_percent']:.2f}"
                          for m in ("direct", "interreflection"))
-        within = "/".join("—" if x.get(m) is None else ("yes" if x[m]["within_noise"] else "no")
+        within = "/".join("—" if x.get(m) is None else ("yes" if x[m]["agrees"] else "no")
                           for m in ("direct", "interreflection"))
         f_spp = str(f["grid_samples"]) if f else "—"
         f_time = f"{f['time_s']:.1f}" if f else "—"

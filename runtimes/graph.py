@@ -318,9 +318,17 @@ def _emitters(ir, lighting: str) -> list[dict]:
 
 def diffuser_notes(ir) -> list[str]:
     """What the realtime graph does not represent of the booth's diffuser plate (empty when
-    nothing is left out): a ``roughness`` plate's scattering lobe and angular transmittance."""
+    nothing is left out): a ``roughness`` plate's scattering lobe and angular transmittance, an
+    opal plate's scattered light in the highlights."""
     d = ir.diffuser
-    if d is None or "diffuser" not in ir.effects or d.scattering.get("type") != "roughness":
+    if d is None or "diffuser" not in ir.effects:
+        return []
+    if d.scattering.get("type") == "lambertian":
+        return [f"diffuser opal (diffuse fraction {float(d.scattering['diffuse_fraction']):g}): the LTC "
+                f"highlights of lamps behind the plate see its regular part only (1 - f of its declared "
+                f"total transmittance); its scattered light and its reflection are in the analytic "
+                f"irradiance of surfaces"]
+    if d.scattering.get("type") != "roughness":
         return []
     from lbscene.engine.light.plates import plate_slab
 

@@ -314,10 +314,16 @@ class RoughnessScattering(StrictModel):
 
 
 class LambertianScattering(StrictModel):
-    """A fraction of transmitted light is scattered diffusely, the rest passes straight."""
+    """An opal plate: a fraction of transmitted light is scattered diffusely, the rest passes
+    straight."""
 
     type: Literal["lambertian"]
-    diffuse_fraction: float = Field(ge=0, le=1)
+    diffuse_fraction: float = Field(ge=0, le=1, description="Scattered part of the total normal "
+                                    "transmittance (1 − regular / total), as a spectrophotometer "
+                                    "with an integrating sphere measures it.")
+    reflectance: float | None = Field(None, ge=0, le=1, description="Total reflectance at normal "
+                                      "incidence (both surfaces and the bulk, measured); default: "
+                                      "1 − transmittance (a plate that does not absorb).")
 
 
 class Diffuser(StrictModel):
@@ -327,7 +333,11 @@ class Diffuser(StrictModel):
     size_mm: tuple[float, float] = Field(description="Extent along x and y (mm), centred on x=0.")
     centre_mm: tuple[float, float] = Field((0.0, 0.0), description="Plate centre (x, y) in mm.")
     thickness_mm: float = Field(4.0, gt=0, le=50)
-    transmittance: SpectrumSpec = Field(description="Regular spectral transmittance, 0..1.")
+    transmittance: SpectrumSpec = Field(
+        description="Total spectral transmittance at normal incidence (regular and scattered light, "
+                    "both surfaces included), 0..1: the datasheet's or a spectrophotometer's value. "
+                    "The plate model's own non-absorbing transmittance (clear, rough or opal plate) "
+                    "sets the bulk absorption.")
     scattering: Annotated[Union[RoughnessScattering, LambertianScattering], Field(discriminator="type")]
     ior: float = Field(1.52, ge=1.0, le=3.0)
     provenance: Provenance | None = None

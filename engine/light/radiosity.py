@@ -94,8 +94,16 @@ REFINE_RATIO = 1.5
 TRANSPORT_PARAM_STEP = 0.02
 #: ... and the absolute step near zero
 TRANSPORT_PARAM_FLOOR = 1e-3
-#: … down to this size (mm)
+#: … down to this size (mm) …
 REFINE_MIN_MM = 15.0
+#: … or, next to a tube or a bulb (bodies that light the surface behind them and hide it), down
+#: to this size: a patch must be narrower than the gap between the body and the surface for the
+#: strip the body lights most, which is the strip it hides, to come out as a strip.  Four tubes
+#: with a 7 mm gap under an 85 % ceiling (validation scene ceiling-85): the 25 mm patches the
+#: old floor left there put the model's A3 grid 3 % above Mitsuba 3 (inter-reflected light 6 %
+#: high), 6 mm ones within the truth's noise; panels emit away from the surface behind them and
+#: keep REFINE_MIN_MM
+REFINE_MIN_BODY_MM = 5.0
 #: points (tube slices, panel cells) per lamp for the light reaching the patches; the forward
 #: model's near-field rule refines them for patches within a few spacings of the lamp (25 instead
 #: of the shipped booths' 100 moved their grids by at most 0.02 %, every lighting)
@@ -148,10 +156,12 @@ def _lamp_distance_mm(lamps, points: np.ndarray) -> np.ndarray:
 
 
 def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
-                      min_size_mm: float | None = None, lamps=None) -> Patches:
+                      min_size_mm: float | None = None, lamps=None,
+                      min_body_mm: float | None = None) -> Patches:
     """Split patches 2 × 2 (repeatedly) while their diagonal exceeds ``ratio`` times the
     distance from their centre to the nearest lamp surface (of ``lamps``, default every
-    lamp), down to ``min_size_mm``.
+    lamp), down to ``min_size_mm`` (``min_body_mm`` where a tube or a bulb is the nearest:
+    :data:`REFINE_MIN_BODY_MM`).
 
     Radiosity takes each patch as uniform.  Next to a lamp its first-order light is
     not: a tube 17 mm under a ceiling lights a strip a few centimetres wide, and that
@@ -161,9 +171,14 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
     refined only there, the solution holds with coarse patches elsewhere: 100 mm patches
     refined at the defaults (1.5, 15 mm) are within 0.5 % RMS of 50 mm patches refined at
     (1.0, 10 mm) for every lighting of the SpectraLight QC, with a third of the patches.
+    Closer still (a tube's surface 7 mm from a white ceiling), the bright strip is narrower
+    than 15 mm: next to tubes and bulbs the ratio rule goes on to :data:`REFINE_MIN_BODY_MM`.
     """
     ratio = REFINE_RATIO if ratio is None else ratio
     min_size_mm = REFINE_MIN_MM if min_size_mm is None else min_size_mm
+    min_body_mm = min(REFINE_MIN_BODY_MM if min_body_mm is None else min_body_mm, min_size_mm)
+    lamps = list(ir.lamps if lamps is None else lamps)
+    bodies = [lp for lp in lamps if lp.kind in ("tube", "bulb")]
     polys, normals, mats, surfs = [patches.polys], [patches.normals], [patches.material], [patches.surface]
     done_p, done_n, done_m, done_s = [], [], [], []
     for _ in range(8):
@@ -172,8 +187,12 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
             break
         c = quad_centroids(P)
         diag = np.maximum(np.linalg.norm(P[:, 2] - P[:, 0], axis=1), np.linalg.norm(P[:, 3] - P[:, 1], axis=1))
-        near = diag > ratio * _lamp_distance_mm(ir.lamps if lamps is None else lamps, c)
-        split = near & (diag > min_size_mm * np.sqrt(2) * 2)
+        dist = _lamp_distance_mm(lamps, c)
+        near = diag > ratio * dist
+        # the floor: finer where a tube or a bulb is the nearest lamp
+        floor = np.where(_lamp_distance_mm(bodies, c) <= dist, min_body_mm, min_size_mm) if bodies \
+            else min_size_mm
+        split = near & (diag > floor * np.sqrt(2) * 2)
         keep = ~split
         done_p.append(P[keep]); done_n.append(N[keep]); done_m.append(M[keep]); done_s.append(S[keep])
         if not split.any():
@@ -319,12 +338,41 @@ def _box_cut_planes(ir, occluders) -> list[tuple[np.ndarray, np.ndarray]]:
     return planes
 
 
+#: material id of the diffuser plate's patches (its reflectance comes from the plate model,
+#: :func:`lbscene.engine.light.plates.plate_hemispherical_reflectance`)
+PLATE_MATERIAL = "diffuser-plate"
+
+
+def plate_patches(ir, patch_size_mm: float) -> Patches:
+    """Both faces of the diffuser plate as patches: the top face (normal +z, at the plate's
+    mid-plane + half its thickness, facing the luminaire above) and the bottom face (normal
+    −z, facing the booth).  They reflect with the plate's hemispherical reflectance; light
+    crossing the plate between the two sides is the transport's plate transmittance
+    (:class:`RadiosityTransport`)."""
+    d = ir.diffuser
+    (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
+    nu = max(1, int(np.ceil(sx / patch_size_mm)))
+    nv = max(1, int(np.ceil(sy / patch_size_mm)))
+    out = []
+    for sign, name in ((1.0, "plate:top"), (-1.0, "plate:bottom")):
+        z = d.z_mm + sign * d.thickness_mm / 2
+        a, b = np.array([cx - sx / 2, cy - sy / 2, z]), np.array([cx + sx / 2, cy - sy / 2, z])
+        c, e = np.array([cx + sx / 2, cy + sy / 2, z]), np.array([cx - sx / 2, cy + sy / 2, z])
+        # counter-clockwise seen from the side the face looks at
+        q = _grid_quad(a, b, c, e, nu, nv) if sign > 0 else _grid_quad(a, e, c, b, nv, nu)
+        n = np.tile([0.0, 0.0, sign], (len(q), 1))
+        out.append(Patches(q, n, quad_areas(q), np.array([PLATE_MATERIAL] * len(q), object),
+                           np.array([name] * len(q), object)))
+    return _concat_patches(out)
+
+
 def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, occluders=(),
-                     mesh_patch_mm: float | None = None) -> Patches:
+                     mesh_patch_mm: float | None = None, plate: bool = False) -> Patches:
     """Patches of the box surfaces, refined near ``lamps`` (default: every lamp; the
     transport passes the lamps a lighting turns on), plus both faces of every mesh triangle
     when ``meshes`` (at :func:`mesh_patch_size_mm`) and of every occluder of ``occluders``
-    that has a material (:func:`occluder_patches`)."""
+    that has a material (:func:`occluder_patches`), and both faces of the diffuser plate when
+    ``plate`` (:func:`plate_patches`)."""
     # walls are cut at a diffuser plate's height, and surfaces along the plane of an occluder
     # that stands on them: no patch straddles a plate or a panel
     z_cuts = (ir.diffuser.z_mm,) if ir.diffuser is not None else ()
@@ -340,6 +388,8 @@ def interior_patches(ir, patch_size_mm: float, meshes: bool = True, lamps=None, 
     if m is not None and o is not None:
         m, o = _coplanar_cover(m, o, occluders, mesh_triangles(ir))
     parts += [x for x in (m, o) if x is not None and len(x)]
+    if plate and ir.diffuser is not None:
+        parts.append(plate_patches(ir, patch_size_mm))
     return parts[0] if len(parts) == 1 else _concat_patches(parts)
 
 
@@ -523,11 +573,13 @@ class RadiosityTransport:
         # occluders cut the box's patches where they stand on it; with a material, they
         # reflect (both faces are patches), as the booth declares
         occ_key = _body_signature([(f"{o.id}:{o.material}", r) for o, r in occluders])
-        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key)
+        # the diffuser plate reflects from both faces: its faces are patches
+        plate = "diffuser" in ctx.effects and ir.diffuser is not None
+        key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key, plate)
         if key not in ctx.cache:
             lamps = [lp for lp in ir.lamps if lp.id in lit]
             patches = interior_patches(ir, p.patch_size_mm, p.meshes, lamps=lamps, occluders=occluders,
-                                       mesh_patch_mm=p.mesh_patch_size_mm)
+                                       mesh_patch_mm=p.mesh_patch_size_mm, plate=plate)
             from lbscene.engine.files.limits import check_work
 
             check_work("patches", len(patches.polys),
@@ -549,34 +601,53 @@ class RadiosityTransport:
             if bk not in ctx.cache:
                 ctx.cache[bk] = self._F_past_bodies(self.F)
             self.F = ctx.cache[bk]
+        # the plate's faces are seen only from the side they face: a polygon form factor does not
+        # tell a face from its back, and the plate is no blocker (light crossing it is the line
+        # factor below), so the ceiling would see the bottom face through the plate
+        self._plate_faces = None
+        if plate:
+            self._plate_faces = self.patches.material == PLATE_MATERIAL
+            self.F = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres), 0.0, self.F)
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
-        rk = key + ("rho", p.reflectance_scale)
+        plate_R = None
+        if plate:
+            from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance
+
+            T_bands = ir.grid.integrate(diffuser_transmittance_1nm(ctx, ctx.params("diffuser")))
+            plate_R = plate_hemispherical_reflectance(ir, T_bands)                      # (B,)
+        rk = key + ("rho", p.reflectance_scale, None if plate_R is None else tuple(np.round(plate_R, 9)))
         if rk not in ctx.cache:
             mats = ir.materials
-            rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
-                len(self.patches), -1)
-            ctx.cache[rk] = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
+            rho = np.array([plate_R if m == PLATE_MATERIAL else mats[m].reflectance.array_bands
+                            for m in self.patches.material]).reshape(len(self.patches), -1)
+            # the plate's reflectance is the plate model's, not a surface material's
+            scale = np.where(self.patches.material == PLATE_MATERIAL, 1.0, p.reflectance_scale)[:, None]
+            ctx.cache[rk] = np.clip(rho * scale, 0.0, 0.99)                            # (P, B)
         self.rho = ctx.cache[rk]
         self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)
-        # transmits inter-reflected light with its regular transmittance; a rough slab with
-        # its hemispherical transmittance (diffuse light, plate_diffuse_light_factor)
+        # transmits inter-reflected light along each line between two patches with its directional
+        # transmittance at that line's incidence (plate_directional_relative, times the declared
+        # total): by reciprocity, the radiance seen through a plate along θ under a uniform sky is
+        # T(θ) times the sky's, so each line's share is T(θ), and a Lambertian source's light
+        # crosses with the hemispherical T_h in total.  (A constant T_h on every line, as before,
+        # put the light of a white cavity that reaches the booth below through a rough PMMA
+        # plate 14 % under Mitsuba 3: the lines to the floor are steep, where T(θ) > T_h.)
         self.plate_T = None
         self.cross_pp = None
         if "diffuser" in ctx.effects and ir.diffuser is not None:
             from .geometry import segment_hits_rectangle
-            from .plates import diffuser_rect, diffuser_transmittance_1nm, plate_diffuse_light_factor
+            from .plates import diffuser_rect, diffuser_transmittance_1nm
 
             dp = ctx.params("diffuser")
             self.plate_rect = diffuser_rect(ir)
-            self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp)) * \
-                plate_diffuse_light_factor(ir)                                          # (B,)
-            ck = key + ("plate_cross",)
+            self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp))       # (B,) declared
+            ck = key + ("plate_cross", ir.diffuser.ior, json.dumps(ir.diffuser.scattering, sort_keys=True))
             if ck not in ctx.cache:
                 c = self.patches.centres
-                ctx.cache[ck] = segment_hits_rectangle(c, c, self.plate_rect)
+                ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
             self.cross_pp = ctx.cache[ck]
         self._B = None
         self._terms = None
@@ -615,7 +686,8 @@ class RadiosityTransport:
         nrm = np.concatenate(nrm_l)
         # nudge off the surface so paths leaving a patch never count it as an occluder
         terms = self._transport_model().first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
-                                                          pair_factor=self._lamp_visibility())
+                                                          pair_factor=self._plate_directional(
+                                                              self._lamp_visibility()))
         E0 = np.zeros((len(patches), len(terms)))
         for k, t in enumerate(terms):
             E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
@@ -721,6 +793,38 @@ class RadiosityTransport:
                                    limit=64)
                 f = fb if f is None else f * fb
             return f
+
+        return factor
+
+    def _plate_directional(self, base):
+        """``base`` (a pair factor, or None) times, on the plate's top face, the plate's
+        directional reflectance relative to its hemispherical one, :math:`R(θ_i)/R_h`: the lamps'
+        light reaches the plate at its own incidence, while the patch reflects with
+        :math:`R_h` (:func:`lbscene.engine.light.plates.plate_reflectance`; at the bands' mean
+        absorption)."""
+        ir = self.ctx.ir
+        if not (self.patches.material == PLATE_MATERIAL).any():
+            return base
+        from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance, plate_reflectance
+
+        d = ir.diffuser
+        T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, self.ctx.params("diffuser")))))
+        Rh = float(plate_hemispherical_reflectance(ir, np.array([T]))[0])
+        z_top = d.z_mm + d.thickness_mm / 2
+        lo = np.array([d.centre_mm[0] - d.size_mm[0] / 2, d.centre_mm[1] - d.size_mm[1] / 2])
+        hi = np.array([d.centre_mm[0] + d.size_mm[0] / 2, d.centre_mm[1] + d.size_mm[1] / 2])
+
+        def factor(es, P):
+            f = None if base is None else base(es, P)
+            on = (np.abs(P[:, 2] - z_top) < 10 * NUDGE_MM) & np.all((P[:, :2] >= lo - 1e-6) &
+                                                                    (P[:, :2] <= hi + 1e-6), axis=1)
+            if not on.any() or Rh <= 0:
+                return f
+            d_ = es.points_mm[None, :, :] - P[on][:, None, :]
+            cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
+            w = np.ones((len(P), len(es.points_mm)))
+            w[on] = plate_reflectance(ir, cos_i, np.array([T]))[..., 0] / Rh
+            return w if f is None else f * w
 
         return factor
 
@@ -941,10 +1045,30 @@ class RadiosityTransport:
                 sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
         self._B = np.stack([sol[i] for i in inv])
 
+    def _in_front(self, P) -> np.ndarray:
+        """(len(P), patches): is point ``P[i]`` on the side patch ``j`` faces?"""
+        c, n = self.patches.centres, self.patches.normals
+        return ((P[:, None, :] - c[None, :, :]) * n[None, :, :]).sum(-1) > 0
+
+    def _plate_line_factor(self, A, B, cross) -> np.ndarray:
+        """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
+        else minus the plate's directional transmittance at the line's incidence relative to
+        normal incidence (negative marks a crossing: :meth:`_F_band` multiplies those by the
+        declared total transmittance)."""
+        from .plates import plate_directional_relative
+
+        d = A[:, None, :] - B[None, :, :]
+        cos = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+        return np.where(cross, -plate_directional_relative(self.ctx.ir, cos), 1.0)
+
+    def _crossed(self, M, S, T):
+        """``M`` with the entries whose lines cross the plate (``S`` < 0) times ``T·|S|``."""
+        return np.where(S < 0, M * (-S) * T, M)
+
     def _F_band(self, T):
         if T is None or self.cross_pp is None:
             return self.F
-        return np.where(self.cross_pp, self.F * T, self.F)
+        return self._crossed(self.F, self.cross_pp, T)
 
     # ------------------------------------------------------------------ receivers
     def patch_radiosity(self) -> np.ndarray:
@@ -976,10 +1100,11 @@ class RadiosityTransport:
             from .geometry import segment_hits_rectangle
 
             cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
+            S_rx = self._plate_line_factor(P_rx, self.patches.centres, cross)
         ops = []
         for j, u in enumerate(uniq):
             r = u[:Pn]
-            Gj = G if self.plate_T is None else np.where(cross, G * u[Pn], G)
+            Gj = G if self.plate_T is None else self._crossed(G, S_rx, u[Pn])
             n_it = self._neumann_terms(u)
             if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
                 A = r[:, None] * self._F_band(u[Pn] if u.size > Pn else None)
@@ -1009,6 +1134,8 @@ class RadiosityTransport:
         Vb = self._gather_past_bodies(P, G)
         if Vb is not None:
             G = G * Vb
+        if self._plate_faces is not None:
+            G = np.where(self._plate_faces[None, :] & ~self._in_front(P), 0.0, G)
         R = self._receiver_operators(G, P)
         ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],

@@ -26,10 +26,20 @@ lamp bodies          tube, panel and bulb shapes are black (absorbing), as in th
 occluders            black (or declared-material) ``twosided`` rectangles; an
                      aperture plate is the frame around its opening
                      (``aperture_occlusion`` on)
+mirror (reflector)   a one-sided ``rectangle`` (the lamp's mirror:
+                     facing ``normal``, ``distance_mm`` behind the lamp,
+                     ``width_mm`` across its axis) of ``conductor``
+                     ``material: none`` whose ``specular_reflectance``
+                     is the declared reflectance (``reflector`` on;
+                     plane mirrors only); its back absorbs
 diffuser plate       a closed box of ``roughdielectric`` (GGX,
                      :math:`α = \\text{roughness}^2` as in Blender's Glass BSDF,
                      the declared ``ior`` and ``thickness_mm``; mid-plane at
                      ``z_mm``) (``diffuser`` on)
+opal plate           a closed box of smooth ``dielectric`` (declared ``ior``,
+                     ``thickness_mm``) filled with a non-absorbing
+                     ``homogeneous`` medium (Henyey–Greenstein phase), rendered
+                     with ``volpath`` (``diffuser`` on; scattering ``lambertian``)
 ===================  ==========================================================
 
 :math:`I(λ)` is the lamp's peak spectral intensity from the IR
@@ -39,11 +49,26 @@ normal; lengths in metres in these formulas.  Scene coordinates stay in
 millimetres: radiance-driven emitters do not depend on the length unit, the
 point emitter's intensity is multiplied by 10⁶ (mm² → m²).
 
-A declared diffuser transmittance below the clear slab's Fresnel value
-:math:`T_0` is honoured as bulk absorption, a factor
-:math:`\\sqrt{T/T_0}` on each crossing of an interface
-(``specular_transmittance``); a transmittance above :math:`T_0` is refused (no
-slab of that ior transmits it).
+A declared diffuser transmittance is the plate's *total* transmittance at normal
+incidence, as a datasheet gives it.  The rough plate's own transmittance without
+absorption :math:`T_\\text{mi}` is measured here, in Mitsuba
+(:func:`plate_optics`), and the rest is bulk absorption, a factor
+:math:`\\sqrt{T/T_\\text{mi}}` on each refraction (``specular_transmittance``); a
+transmittance above :math:`T_\\text{mi}` is refused (no such slab transmits it).
+
+An opal plate is built from what its datasheet gives: the total normal
+transmittance :math:`T` (constant over wavelength) and the diffuse fraction
+:math:`f_d`.  The unscattered light crosses the medium with
+:math:`e^{-τ}`, so the optical depth follows from the regular part,
+:math:`(1-f_d)\\,T = (1-R_0)^2 e^{-τ} / (1 - R_0^2 e^{-2τ})`; the phase function's
+asymmetry :math:`g` is then found (bisection on Mitsuba's own :func:`plate_optics`)
+so that the non-absorbing plate transmits :math:`T` in total.
+
+:func:`plate_optics` measures a plate by reciprocity: a radiance meter looks at
+the (infinitely wide) plate from direction :math:`θ` under a uniform sky of
+radiance 1 above it, a black ground below; what it sees through the plate is
+the directional-hemispherical transmittance :math:`T(θ)`, what it sees reflected
+from above the reflectance :math:`R(θ)`.
 
 Measurement
 -----------
@@ -80,7 +105,7 @@ import numpy as np
 from lbscene.engine.files.diagnostics import LbsceneUserError
 
 __all__ = ["MitsubaTruth", "MitsubaResult", "MAX_SPP_PER_CALL", "DISC_RADIUS_MM", "mitsuba_version",
-           "SUPPORTED_EFFECTS"]
+           "SUPPORTED_EFFECTS", "plate_optics", "plate_bsdf", "opal_medium"]
 
 K_M = 683.0
 #: float32 film accumulation loses small samples beyond this (see the module docstring)
@@ -93,6 +118,7 @@ VARIANT = "scalar_spectral"
 
 #: effects the provider represents (with the restrictions checked in ``_refusals``)
 SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
+                               "reflector",
                                "lamp_spectrum_shift",
                                "angular_profile", "detector_cosine_error"})
 
@@ -136,10 +162,141 @@ def _frame(x, y, z, origin, sx, sy, sz):
     return m
 
 
-def _clear_slab_T(ior: float) -> float:
-    """Normal-incidence transmittance of a clear non-absorbing slab: (1−R)/(1+R), R = ((n−1)/(n+1))²."""
-    r = ((ior - 1.0) / (ior + 1.0)) ** 2
-    return (1.0 - r) / (1.0 + r)
+#: samples per pass and passes of a plate measurement (:func:`plate_optics`): the rough slab's
+#: T(0°) to about ±0.0002
+PLATE_SPP = 65536
+PLATE_PASSES = 4
+#: half-width of the measured plate (mm): 40 times the meter's distance, so that it fills the
+#: meter's view; far wider plates lose float32 precision in their faces (a 10⁵ mm plate of GGX
+#: α 0.01 transmitted 1.5 % less than a 10³ mm one, a smooth one the same)
+PLATE_HALF_WIDTH_MM = 2000.0
+#: the opal medium's phase asymmetry is searched in [0, OPAL_G_MAX]
+OPAL_G_MAX = 0.95
+_PLATE_CACHE: dict = {}
+
+
+def plate_bsdf(scattering: dict, ior: float) -> dict:
+    """The plate's faces: ``roughdielectric`` (GGX, α = roughness²) for a ``roughness``
+    plate, smooth ``dielectric`` for an opal one (``null``, no interface, for ior 1)."""
+    if scattering.get("type") == "roughness":
+        return {"type": "roughdielectric", "distribution": "ggx",
+                "alpha": max(float(scattering["roughness"]) ** 2, 1e-4), "int_ior": float(ior), "ext_ior": 1.0}
+    if ior <= 1.0 + 1e-9:
+        # index-matched faces: no interface, the medium alone (lamps are reached by next-event
+        # estimation through it)
+        return {"type": "null"}
+    return {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}
+
+
+def plate_optics(bsdf: dict, thickness_mm: float, cos_theta, *, medium: dict | None = None,
+                 spp: int = PLATE_SPP, passes: int = PLATE_PASSES, seed: int = 0) -> dict:
+    """Directional-hemispherical transmittance and reflectance of a plate, measured in Mitsuba.
+
+    The plate (faces ``bsdf``, optional interior ``medium``) is a slab of ``thickness_mm``,
+    2 :data:`PLATE_HALF_WIDTH_MM` wide, under a uniform sky of radiance 1 (a ``constant`` emitter) with a black
+    ground 200 mm below; a ``radiancemeter`` 50 mm from it along direction θ
+    (``cos_theta``) looks at its centre, from below for :math:`T(θ)` and from above for
+    :math:`R(θ)` (reciprocity: what the meter sees is the plate's response to light from the
+    whole hemisphere into the meter's direction).  Returns ``{'T', 'R', 'T_se', 'R_se'}``
+    arrays (standard errors over ``passes``)."""
+    mi = _mi()
+    cos_theta = np.atleast_1d(np.asarray(cos_theta, float))
+    cube = {"type": "cube", "bsdf": bsdf,
+            "to_world": mi.ScalarTransform4f(np.diag([PLATE_HALF_WIDTH_MM, PLATE_HALF_WIDTH_MM,
+                                                      thickness_mm / 2, 1.0]).tolist())}
+    if medium is not None:
+        cube["interior"] = medium
+    out = {"T": [], "R": [], "T_se": [], "R_se": []}
+    for mode in ("T", "R"):
+        for c in cos_theta:
+            s_ = np.sqrt(max(0.0, 1.0 - c * c))
+            d = np.array([s_, 0.0, c]) if mode == "R" else np.array([s_, 0.0, -c])
+            o = 50.0 * d
+            scene = mi.load_dict({
+                "type": "scene",
+                "integrator": {"type": "volpath" if medium is not None else "path", "max_depth": -1},
+                "sky": {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}},
+                "plate": cube,
+                "ground": {"type": "rectangle", "bsdf": {"type": "diffuse",
+                                                          "reflectance": {"type": "uniform", "value": 0.0}},
+                           "to_world": mi.ScalarTransform4f(
+                               [[1e7, 0, 0, 0], [0, 1e7, 0, 0], [0, 0, 1, -200.0], [0, 0, 0, 1]])},
+                "meter": {"type": "radiancemeter", "origin": o.tolist(), "direction": (-d).tolist(),
+                          "film": {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"},
+                                   "band": {"type": "regular", "wavelength_min": 360.0,
+                                            "wavelength_max": 830.0, "values": "1, 1"}},
+                          "sampler": {"type": "independent", "sample_count": spp}}})
+            v = np.array([float(np.asarray(mi.render(scene, spp=spp, seed=seed + 7919 * k)).ravel()[0])
+                          for k in range(passes)])
+            out[mode].append(v.mean())
+            out[mode + "_se"].append(v.std(ddof=1) / np.sqrt(passes))
+    res = {k: np.asarray(v) for k, v in out.items()}
+    return res
+
+
+def _normalised_optics(bsdf, thickness_mm, cos_theta, medium=None, **kw) -> dict:
+    """:func:`plate_optics` divided by what the meter sees with no plate (the sky, 1 by
+    construction, times the film band's normalisation)."""
+    key = (repr(bsdf), float(thickness_mm), tuple(np.atleast_1d(cos_theta)), repr(medium),
+           tuple(sorted(kw.items())))
+    hit = _PLATE_CACHE.get(key)
+    if hit is None:
+        ref = plate_optics({"type": "null"}, thickness_mm, [1.0], spp=64, passes=2)["T"][0]
+        res = plate_optics(bsdf, thickness_mm, cos_theta, medium=medium, **kw)
+        hit = _PLATE_CACHE[key] = {k: v / ref for k, v in res.items()}
+    return hit
+
+
+def _opal_optical_depth(T: float, fd: float, ior: float) -> float:
+    """τ such that the unscattered light through the slab, (1−R₀)² e^{−τ}/(1 − R₀² e^{−2τ}), is
+    the regular part (1 − f_d)·T of the total transmittance ``T``."""
+    from scipy.optimize import brentq
+
+    r0 = ((ior - 1.0) / (ior + 1.0)) ** 2
+    reg = (1.0 - fd) * T
+
+    def f(tau):
+        e = np.exp(-tau)
+        return (1 - r0) ** 2 * e / (1 - r0 * r0 * e * e) - reg
+
+    return float(brentq(f, 0.0, 60.0))
+
+
+def opal_medium(T: float, fd: float, ior: float, thickness_mm: float, *, iterations: int = 12) -> dict:
+    """The opal plate's interior: a non-absorbing ``homogeneous`` medium whose extinction
+    gives the regular part (:func:`_opal_optical_depth`) and whose Henyey–Greenstein
+    asymmetry :math:`g` (bisection, ``iterations`` steps) makes the plate transmit ``T`` in
+    total at normal incidence (measured by :func:`plate_optics`).  Raises ``ValueError`` when
+    no :math:`g` in [0, :data:`OPAL_G_MAX`] does."""
+    key = ("opal", round(T, 6), round(fd, 6), round(ior, 6), round(thickness_mm, 6), iterations)
+    hit = _PLATE_CACHE.get(key)
+    if hit is not None:
+        return hit
+    sigma_t = _opal_optical_depth(T, fd, ior) / thickness_mm
+    bsdf = plate_bsdf({"type": "lambertian"}, ior)
+
+    def medium(g):
+        return {"type": "homogeneous", "albedo": {"type": "uniform", "value": 1.0},
+                "sigma_t": {"type": "uniform", "value": sigma_t},
+                "phase": {"type": "hg", "g": float(g)}}
+
+    def total(g):
+        return float(_normalised_optics(bsdf, thickness_mm, [1.0], medium=medium(g), spp=16384)["T"][0])
+
+    lo, hi = 0.0, OPAL_G_MAX
+    t_lo, t_hi = total(lo), total(hi)
+    if not t_lo <= T <= t_hi:
+        raise ValueError(f"an opal plate of total transmittance {T:g} and diffuse fraction {fd:g} "
+                         f"(ior {ior:g}, {thickness_mm:g} mm) is out of reach: a non-absorbing "
+                         f"scattering layer gives {t_lo:.3f} to {t_hi:.3f}")
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if total(mid) < T:
+            lo = mid
+        else:
+            hi = mid
+    hit = _PLATE_CACHE[key] = medium(0.5 * (lo + hi))
+    return hit
 
 
 @dataclass(frozen=True)
@@ -243,19 +400,41 @@ class MitsubaTruth:
             for k in ("opening_scale", "opening_scale_u", "opening_scale_v"):
                 if float(fx["aperture_occlusion"].get(k, 1.0) or 1.0) != 1.0:
                     out.append(f"aperture_occlusion {k} != 1 has no Mitsuba representation")
+        if "reflector" in fx:
+            p = fx["reflector"] or {}
+            if float(p.get("reflectance_scale", 1.0) or 1.0) != 1.0:
+                out.append("reflector reflectance_scale != 1 has no Mitsuba representation")
+            if p.get("lamps") not in (None, [], ()):
+                out.append("reflector 'lamps' (mirrors of some lamps only) has no Mitsuba representation")
+            for lamp, _ in ir.lamps_on(self.lighting):
+                refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
+                if refl is not None and refl.type != "plane":
+                    out.append(f"lamp {lamp.id!r}: reflector {lamp.reflector!r} is a {refl.type!r}; only "
+                               "plane mirrors have a Mitsuba representation here")
         if "diffuser" in fx and ir.diffuser is not None:
             d, p = ir.diffuser, fx["diffuser"]
             sc = d.scattering
-            if sc.get("type") != "roughness":
-                out.append(f"diffuser scattering {sc.get('type')!r} has no Mitsuba representation "
-                           "(a rough dielectric slab, scattering type 'roughness', has)")
+            if sc.get("type") not in ("roughness", "lambertian"):
+                out.append(f"diffuser scattering {sc.get('type')!r} has no Mitsuba representation")
             if p.get("diffuse_fraction"):
                 out.append("diffuser diffuse_fraction override has no Mitsuba representation")
             T = d.transmittance.array_1nm * float(p.get("transmittance_scale", 1.0) or 1.0)
-            t0 = _clear_slab_T(d.ior)
-            if np.max(T) > t0 + 0.005:
-                out.append(f"diffuser transmittance {np.max(T):.3f} exceeds the clear slab's {t0:.3f} "
-                           f"for ior {d.ior:g}: no slab transmits that")
+            if sc.get("type") == "lambertian":
+                if np.ptp(T) > 1e-9:
+                    out.append("an opal diffuser's transmittance must be constant over wavelength "
+                               "for its Mitsuba representation (one scattering medium)")
+                if sc.get("reflectance") is not None:
+                    out.append("an opal diffuser's declared reflectance has no Mitsuba representation "
+                               "(the medium does not absorb: R = 1 - T)")
+                if not 0.0 < float(sc["diffuse_fraction"]) < 0.999:
+                    out.append("an opal diffuser's diffuse_fraction must be in (0, 0.999) for its Mitsuba "
+                               "representation (the regular part sets the medium's optical depth)")
+            elif sc.get("type") == "roughness":
+                t0 = self._rough_plate_T(d)
+                if np.max(T) > t0 + 0.005:
+                    out.append(f"diffuser transmittance {np.max(T):.3f} exceeds the non-absorbing rough "
+                               f"plate's {t0:.3f} (ior {d.ior:g}, roughness {sc['roughness']:g}): no such "
+                               f"plate transmits that")
         return out
 
     @staticmethod
@@ -376,25 +555,63 @@ class MitsubaTruth:
                     "bsdf": self._bsdf(refl)}
         return out
 
+    def _mirrors(self) -> dict:
+        """One conductor rectangle per lamp that is on and has a reflector (``reflector`` on)."""
+        if "reflector" not in self.effects:
+            return {}
+        from lbscene.engine.light.effects.builtin.reflector import mirror_rect
+
+        ir = self.ir
+        out = {}
+        for lamp, _ in ir.lamps_on(self.lighting):
+            refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
+            if refl is None:
+                continue
+            r = mirror_rect(ir, lamp, refl)
+            n, u = _unit(r.normal), _unit(r.u)
+            out[f"mirror_{lamp.id}"] = {
+                "type": "rectangle",
+                "to_world": _mi().ScalarTransform4f(
+                    _frame(u, np.cross(n, u), n, np.asarray(r.centre, float), r.half[0], r.half[1], 1.0).tolist()),
+                "bsdf": {"type": "conductor", "material": "none",
+                         "specular_reflectance": _spectrum(np.clip(refl.reflectance.array_1nm, 0.0, 1.0))}}
+        return out
+
+    @staticmethod
+    def _rough_plate_T(d) -> float:
+        """The non-absorbing rough plate's total normal transmittance, measured in Mitsuba."""
+        return float(_normalised_optics(plate_bsdf(d.scattering, d.ior), d.thickness_mm, [1.0])["T"][0])
+
+    def _has_opal(self) -> bool:
+        d = self.ir.diffuser
+        return "diffuser" in self.effects and d is not None and d.scattering.get("type") == "lambertian"
+
     def _diffuser(self) -> dict:
         d = self.ir.diffuser
         if "diffuser" not in self.effects or d is None:
             return {}
         p = self.effects["diffuser"]
         T = np.clip(d.transmittance.array_1nm * float(p.get("transmittance_scale", 1.0) or 1.0), 0, 1)
-        per_interface = np.sqrt(np.clip(T / _clear_slab_T(d.ior), 0.0, 1.0))
-        alpha = float(d.scattering["roughness"]) ** 2
         centre = (d.centre_mm[0], d.centre_mm[1], d.z_mm)
-        bsdf = {"type": "roughdielectric", "distribution": "ggx", "alpha": max(alpha, 1e-4),
-                "int_ior": float(d.ior), "ext_ior": 1.0}
-        if np.any(per_interface < 0.9999):
-            bsdf["specular_transmittance"] = _spectrum(per_interface)
-        return {"diffuser": {
-            "type": "cube",
-            "to_world": _mi().ScalarTransform4f(
-                _frame((1, 0, 0), (0, 1, 0), (0, 0, 1), centre, d.size_mm[0] / 2, d.size_mm[1] / 2,
-                       d.thickness_mm / 2).tolist()),
-            "bsdf": bsdf}}
+        bsdf = plate_bsdf(d.scattering, d.ior)
+        plate = {"type": "cube",
+                 "to_world": _mi().ScalarTransform4f(
+                     _frame((1, 0, 0), (0, 1, 0), (0, 0, 1), centre, d.size_mm[0] / 2, d.size_mm[1] / 2,
+                            d.thickness_mm / 2).tolist())}
+        if d.scattering.get("type") == "lambertian":
+            try:
+                plate["interior"] = opal_medium(float(T[0]), float(d.scattering["diffuse_fraction"]), d.ior,
+                                                d.thickness_mm)
+            except ValueError as exc:
+                self._refuse([str(exc)])
+        else:
+            # the declared total normal transmittance over the non-absorbing plate's: bulk absorption,
+            # a factor on each of the two refractions
+            per_interface = np.sqrt(np.clip(T / self._rough_plate_T(d), 0.0, 1.0))
+            if np.any(per_interface < 0.9999):
+                bsdf["specular_transmittance"] = _spectrum(per_interface)
+        plate["bsdf"] = bsdf
+        return {"diffuser": plate}
 
     def scene_dict(self, points, normals, film_bands: dict | None = None) -> dict:
         """The Mitsuba scene (dict) with one measuring disc and radiancemeter per receiver.
@@ -407,10 +624,13 @@ class MitsubaTruth:
             film_bands = {"V": photopic_1nm()}
         P = np.asarray(points, float)
         N = np.asarray(normals, float)
-        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
+        # an opal plate's scattering medium needs the volumetric path tracer
+        scene = {"type": "scene", "integrator": {"type": "volpath" if self._has_opal() else "path",
+                                                 "max_depth": -1}}
         scene.update(self._surfaces())
         scene.update(self._lamp_shapes())
         scene.update(self._occluders())
+        scene.update(self._mirrors())
         scene.update(self._diffuser())
         film = {"type": "specfilm", "width": 1, "height": 1, "rfilter": {"type": "box"}}
         for k, (name, sens) in enumerate(film_bands.items()):

@@ -21,7 +21,8 @@ It reads only the IR (spectra, geometry, effect parameters) and never calls
 the forward model's code; a ``roughness`` plate's directional transmittance
 comes from the rough slab tables (:mod:`lbscene.engine.light.rough_slab`, the
 model of the plate both share; its regular path only: a plate whose lobe
-is wide is not represented beyond that).  It only supports box interiors (parametric
+is wide is not represented beyond that), and an opal plate's entry and exit laws from
+:mod:`lbscene.engine.light.plates` (the plate model both share).  It only supports box interiors (parametric
 booths).  Other truth providers (e.g. a Cycles bake) register with
 :func:`register_truth_provider` and are looked up by name.
 
@@ -38,6 +39,8 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
+
+from lbscene.engine.light.plates import opal_entry_relative, opal_exit_shape
 
 __all__ = ["ReferenceEngine", "TRUTH_PROVIDERS", "register_truth_provider", "get_truth_provider"]
 
@@ -451,15 +454,18 @@ class ReferenceEngine:
         return out
 
     def _plate_angular(self, cos_i, t0):
-        """Regular transmittance of the plate at incidence ``cos_i`` relative to the clear slab at
-        normal incidence: the clear plate's Fresnel series, or for a ``roughness`` plate the rough
+        """Regular transmittance of the plate at incidence ``cos_i`` relative to its own at normal
+        incidence: the clear plate's Fresnel series, or for a ``roughness`` plate the rough
         slab's directional transmittance (:mod:`lbscene.engine.light.rough_slab`: two GGX faces,
         light scattered within its narrow lobe kept on the straight path)."""
         d = self.ir.diffuser
         if d.scattering.get("type") == "roughness":
             from lbscene.engine.light.rough_slab import rough_slab
 
-            return rough_slab(float(d.scattering["roughness"]) ** 2, float(d.ior)).transmittance(cos_i) / t0
+            # the declared transmittance is the plate's total at normal incidence: relative to
+            # the non-absorbing rough slab's own T(0°)
+            slab = rough_slab(float(d.scattering["roughness"]) ** 2, float(d.ior))
+            return slab.transmittance(cos_i) / float(slab.transmittance(np.ones(1))[0])
         return _fresnel_plate(cos_i, d.ior) / t0
 
     def _diffuse_fraction(self):
@@ -501,7 +507,9 @@ class ReferenceEngine:
                 u = v / r[..., None]
                 cos_r = np.maximum((u * n[:, None, :]).sum(-1), 0)
                 cos_s = np.maximum(u[..., 2], 0)           # plate emits downward (-z)
-                val = exitance[None] / np.pi * cos_s * cos_r / (r * 1e-3) ** 2 * area
+                # the opal exit law: Lambertian times t(θ_o)/t_h (lbscene.engine.light.plates)
+                val = exitance[None] / np.pi * cos_s * opal_exit_shape(cos_s, d.ior) * cos_r / \
+                    (r * 1e-3) ** 2 * area
                 if m.any():
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
                 geo[a:a + chunk] = val.sum(1)
@@ -521,7 +529,8 @@ class ReferenceEngine:
                 u = d_ / r[..., None]
                 cos_r = np.maximum(-u[..., 2], 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
-                val = val * _fresnel_plate(cos_r, self.ir.diffuser.ior) / t0
+                # light entering the opal layer: t(θ_i) (lbscene.engine.light.plates)
+                val = val * opal_entry_relative(cos_r, self.ir.diffuser.ior)
                 if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
                     val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
                 val = val * _profile_factor(src, u)

@@ -134,3 +134,68 @@ def test_a_tube_shades_the_ceiling_strip_it_lights_most(tmp_path):
 def test_lamp_bodies_parameter_is_validated(tmp_path, flag):
     ir = _booth(tmp_path, 0.2, flag)
     assert ir.effects["interreflection"]["lamp_bodies"] is flag
+
+
+VALIDATION = __import__("pathlib").Path(__file__).resolve().parents[1] / "data" / "validation"
+
+
+def test_patches_next_to_a_tube_close_under_a_ceiling_are_narrower_than_the_gap():
+    """Four tubes whose surfaces are 7 mm under an 85 % ceiling: the ceiling patches next to a
+    tube must be narrower than that gap (the strip a tube lights most is the strip it hides),
+    while far from the tubes the declared 100 mm patches stay."""
+    from lbscene.engine.light.radiosity import REFINE_MIN_BODY_MM, _lamp_distance_mm, interior_patches
+
+    ir = compile_booth(VALIDATION / "ceiling-85")
+    p = interior_patches(ir, 100.0, lamps=list(ir.lamps))
+    ceiling = p.surface.astype(str) == "ceiling"
+    c = p.centres[ceiling]
+    q = p.polys[ceiling]
+    side = np.maximum(np.linalg.norm(q[:, 1] - q[:, 0], axis=1), np.linalg.norm(q[:, 3] - q[:, 0], axis=1))
+    gap = _lamp_distance_mm(ir.lamps, c)
+    near = gap < 10.0
+    assert near.sum() > 100
+    assert side[near].max() < 7.0 and side[near].min() >= REFINE_MIN_BODY_MM
+    assert side[gap > 60].min() > 24.9 and side.max() == pytest.approx(100.0)
+
+
+def test_a_panel_keeps_the_coarser_floor(tmp_path):
+    # a panel emits away from the surface behind it: nothing to resolve there
+    from lbscene.engine.light.radiosity import REFINE_MIN_MM, interior_patches
+
+    (tmp_path / "booth.yaml").write_text(textwrap.dedent("""\
+        version: 1
+        kind: booth
+        name: panel under a ceiling
+        provenance: {status: synthetic, source: "lbscene test suite"}
+        interior: {type: box, width_mm: 900, depth_mm: 600, height_mm: 700}
+        materials:
+          grey: {type: diffuse, reflectance: {type: constant, value: 0.8}}
+        surfaces: {floor: grey, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: grey}
+        lamps:
+          - {id: P, type: panel, position_mm: [0, 0, 690], axis: [1, 0, 0], aim: [0, 0, -1], length_mm: 600,
+             width_mm: 300, spd: {type: constant, value: 1.0}, output: {type: luminance_cd_m2, value_cd_m2: 1000}}
+        lighting:
+          L: {lamps: [P]}
+        observer: {type: eye_point, position_mm: [0, -900, 500]}
+        effects:
+          interreflection: {}
+        """))
+    ir = compile_booth(tmp_path / "booth.yaml")
+    p = interior_patches(ir, 100.0, lamps=list(ir.lamps))
+    q = p.polys
+    side = np.minimum(np.linalg.norm(q[:, 1] - q[:, 0], axis=1), np.linalg.norm(q[:, 3] - q[:, 0], axis=1))
+    assert side.min() >= REFINE_MIN_MM
+
+
+def test_the_coarse_floor_misses_the_bright_ceilings_truth(monkeypatch):
+    """Against the committed Mitsuba 3 truth of the ceiling-85 scene: with the strip behind each
+    tube averaged into 25 mm patches (the floor every lamp had) the model's light on the A3 grid
+    is about 3 % high; resolved, within the scene's 1 % (tests/engine/test_model_vs_truth.py)."""
+    from lbscene.engine.light import radiosity
+    from lbscene.engine.truth.validation import compare_with_truth
+
+    monkeypatch.setattr(radiosity, "REFINE_MIN_BODY_MM", radiosity.REFINE_MIN_MM)
+    c = compare_with_truth(VALIDATION / "ceiling-85", "a3", ir=compile_booth(VALIDATION / "ceiling-85"),
+                           cache={})
+    d = c.model_lx / c.truth.illuminance_lx - 1
+    assert 0.02 < d.mean() < 0.05, d.mean()

@@ -59,7 +59,7 @@ TRUTHS = {
 #: cannot represent still come from 'reference'
 TRUTH_PROVIDER = os.environ.get("LBSCENE_HIDDEN_EFFECT_TRUTH", "reference")
 #: hidden effects (as set up here) that Mitsuba refuses: lamp profiles and overrides, end falloff,
-#: mirrors, a meter response, a Lambertian diffuse-fraction plate
+#: mirrors other than plane ones, a meter response, a Lambertian diffuse-fraction plate
 MITSUBA_CANNOT = {"angular_profile", "tube_end_falloff", "reflector", "detector_cosine_error", "diffuser"}
 
 

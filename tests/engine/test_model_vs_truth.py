@@ -45,7 +45,10 @@ MAX_TRUTH_NOISE_PERCENT = 0.3
 
 #: (scene, grid) the forward model does not meet yet: what physics it is missing, as measured
 #: (empty: every scene meets its threshold)
-KNOWN_GAPS: dict[tuple[str, str], str] = {}
+KNOWN_GAPS: dict[tuple[str, str], str] = {
+    ("rough-cavity-45", "a3"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
+    ("rough-cavity-45", "floor"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
+}
 
 CASES = [(s, g) for s in RT.SCENES for g in GRIDS]
 

@@ -83,3 +83,61 @@ def test_the_reference_engine_hides_the_image_behind_the_lamp_too(model):
         image = RM * cylinder_quadrature_lx(LV, (0, 0, H + 2 * DM), L, R, p, (0, 0, 1), n_along=600,
                                             n_around=720, visible=_visible)
         assert got == pytest.approx(direct + image, rel=0.01), (p, got, direct, image)
+
+
+#: two bulbs side by side, each under its own plane mirror: the two mirrors tile one plane
+TWO_MIRRORS = """\
+version: 1
+kind: booth
+name: Two mirrors test
+provenance: {status: synthetic, source: "lbscene test suite (reflector image)"}
+interior: {type: box, width_mm: 3000, depth_mm: 3000, height_mm: 3000}
+materials:
+  black: {type: diffuse, reflectance: {type: constant, value: 0.0}}
+surfaces: {floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}
+reflectors:
+  mirror: {type: plane, reflectance: {type: constant, value: 0.9}, distance_mm: 500, normal: [0, 0, -1],
+           width_mm: 300}
+lamps:
+  - {id: A, type: bulb, position_mm: [-150, 0, 1000], radius_mm: 30, reflector: mirror,
+     spd: {type: constant, value: 1.0}, output: {type: peak_intensity_cd, value_cd: 1000}}
+  - {id: B, type: bulb, position_mm: [150, 0, 1000], radius_mm: 30, reflector: mirror,
+     spd: {type: constant, value: 1.0}, output: {type: peak_intensity_cd, value_cd: 1000}}
+lighting:
+  AB: {lamps: [A, B]}
+observer: {type: eye_point, position_mm: [0, -1400, 1500]}
+effects:
+  reflector: {}
+"""
+
+
+def test_a_mirror_reflects_the_other_lamps_light_too(tmp_path):
+    """Closed form (inverse-square laws): each bulb and its image 1000 mm above it, the image
+    counted where the line from it to the receiver crosses either mirror (the plane z = 1500 mm,
+    |x| ≤ 300, |y| ≤ 150).  Far to the right, bulb A's image is seen through bulb B's mirror:
+    a model that mirrors each lamp in its own mirror only misses that light."""
+    (tmp_path / "booth.yaml").write_text(TWO_MIRRORS)
+    ir = compile_booth(tmp_path / "booth.yaml")
+    P = np.array([[0, 0, 0], [800, 0, 0], [-1000, 100, 0]], float)
+    N = np.tile([0, 0, 1.0], (len(P), 1))
+
+    def law(src):
+        d = np.asarray(src, float) - P
+        r = np.linalg.norm(d, axis=1)
+        return 1000.0 * d[:, 2] / r / (r * 1e-3) ** 2
+
+    def through_mirrors(src):
+        t = (1500.0 - src[2]) / (P[:, 2] - src[2])
+        x = src[0] + t * (P[:, 0] - src[0])
+        y = src[1] + t * (P[:, 1] - src[1])
+        return (np.abs(x) <= 300) & (np.abs(y) <= 150)
+
+    expected = np.zeros(len(P))
+    for x0 in (-150.0, 150.0):
+        img = (x0, 0.0, 2000.0)
+        expected += law((x0, 0.0, 1000.0)) + 0.9 * law(img) * through_mirrors(img)
+    # the middle receiver sees A's image through B's mirror
+    t = 500.0 / 2000.0
+    assert 0 < -150 + t * (800 + 150) <= 300
+    E = ForwardModel(ir, "AB").illuminance_lx(P, N, meter=False)
+    np.testing.assert_allclose(E, expected, rtol=2e-3)

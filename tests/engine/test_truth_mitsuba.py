@@ -239,10 +239,53 @@ def test_effects_mitsuba_cannot_represent_are_refused_with_a_pinned_message(tmp_
     ir = _booth(tmp_path, "- {id: lamp, type: tube, position_mm: [0, 0, 1000], length_mm: 600, radius_mm: 13, "
                           "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}")
     with pytest.raises(LbsceneUserError) as e:
-        MitsubaTruth(ir, "L", effects={"tube_end_falloff": {}, "reflector": {}})
+        MitsubaTruth(ir, "L", effects={"tube_end_falloff": {}, "reflector": {"reflectance_scale": 0.5}})
     assert e.value.diagnostics[0].format() == (
-        "error LB603: the Mitsuba truth cannot represent this booth: effect 'reflector' has no Mitsuba "
-        "representation; effect 'tube_end_falloff' has no Mitsuba representation")
+        "error LB603: the Mitsuba truth cannot represent this booth: effect 'tube_end_falloff' has no Mitsuba "
+        "representation; reflector reflectance_scale != 1 has no Mitsuba representation")
+
+
+MIRROR = ("reflectors: {mirror: {type: %s, reflectance: {type: constant, value: 0.9}, distance_mm: 300, "
+          "normal: [0, 0, -1], width_mm: 2000}}")
+
+
+@pytest.mark.slow
+def test_a_plane_mirror_adds_the_bulbs_image(tmp_path):
+    """~40 s: a bulb (the irradiance of a point at its centre) 300 mm under a plane mirror of
+    reflectance 0.9, black walls: the receivers get the bulb and its image 600 mm above it, seen
+    through the mirror and past the bulb (closed form: two inverse-square laws).  The image is
+    found only by sampling the mirror's reflection: 1 % noise is what a test-sized render gives."""
+    ir = _booth(tmp_path, "- {id: lamp, type: bulb, position_mm: [0, 0, 1000], radius_mm: 100, reflector: mirror, "
+                          "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}",
+                extra=MIRROR % "plane")
+    # seen from these receivers, the image (3.3° across) stands 11° or more from the bulb (4.7°)
+    P = np.array([[700, 0, 0], [600, 500, 0.0]])
+    N = np.tile([0, 0, 1.0], (2, 1))
+
+    def law(z):
+        d = np.array([0, 0, z]) - P
+        r = np.linalg.norm(d, axis=1)
+        return I_CD * (d * N).sum(1) / r / (r * 1e-3) ** 2
+
+    expected = law(1000.0) + 0.9 * law(1600.0)
+    res = MitsubaTruth(ir, "L", effects={"reflector": {}}, spp=65536).illuminance_with_error_lx(
+        P, N, target_rel_error=0.008, max_passes=24)
+    E, se = res.illuminance_lx, res.std_error_lx
+    assert np.all(se <= 0.01 * expected), (se, expected)
+    assert np.all(np.abs(E - expected) <= K_SIGMA * se + LIFT_ALLOWANCE * expected), (E, expected, se)
+    # the image is a large part of it: a mirror left out would fail
+    assert np.all(0.9 * law(1600.0) > 10 * K_SIGMA * se)
+
+
+def test_a_mirror_that_is_not_plane_is_refused(tmp_path):
+    ir = _booth(tmp_path, "- {id: lamp, type: bulb, position_mm: [0, 0, 1000], radius_mm: 150, reflector: mirror, "
+                          "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}",
+                extra=MIRROR % "prism")
+    with pytest.raises(LbsceneUserError) as e:
+        MitsubaTruth(ir, "L", effects={"reflector": {}})
+    assert e.value.diagnostics[0].format() == (
+        "error LB603: the Mitsuba truth cannot represent this booth: lamp 'lamp': reflector 'mirror' is a "
+        "'prism'; only plane mirrors have a Mitsuba representation here")
 
 
 def test_a_non_isotropic_profile_is_refused(tmp_path):

@@ -211,14 +211,15 @@ class ForwardContext:
             store[k] = hit
         return hit
 
-    def fraction_hitting(self, es: "EmitterSet", rx: np.ndarray, rect) -> np.ndarray:
+    def fraction_hitting(self, es: "EmitterSet", rx: np.ndarray, rect, ring: int | None = None) -> np.ndarray:
         """Memoised :func:`~lbscene.engine.light.geometry.segment_fraction_hitting`.
 
         A tube slice of radius r > 0 is not its axis: its light toward a receiver leaves
         the arc it sees, so for a rectangle within :data:`TUBE_RING_REACH` radii the fraction
-        is averaged over :data:`TUBE_RING` lines on the tube's surface, each weighted by its
-        Lambertian ``max(0, n·u)`` toward the receiver.
+        is averaged over ``ring`` (default :data:`TUBE_RING`) lines on the tube's surface, each
+        weighted by its Lambertian ``max(0, n·u)`` toward the receiver.
         """
+        ring = TUBE_RING if ring is None else int(ring)
         from lbscene.engine.light.geometry import segment_fraction_hitting
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
@@ -233,12 +234,12 @@ class ForwardContext:
             return self.memo("hit", key,
                              lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
 
-        def ring():
+        def around():
             return _tube_ring_average(
-                es, rx, TUBE_RING, 0.0,
+                es, rx, ring, 0.0,
                 lambda P: segment_fraction_hitting(P, es.half_step, rx, rect))
 
-        return self.memo("hit", key + (np.asarray([es.line_radius_mm]),), ring)
+        return self.memo("hit", key + (np.asarray([es.line_radius_mm, ring]),), around)
 
     def fraction_past_body(self, es: "EmitterSet", rx: np.ndarray, body) -> np.ndarray:
         """(M, N) share of each emitter point's light toward each receiver that ``body`` (a

@@ -44,12 +44,20 @@ HERE = Path(__file__).resolve().parent
 #: the validation scenes, in the order they are rendered and reported
 SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-white", "mesh-cavity",
           "rough-diffuser-r030",
-          "rough-diffuser-r010")
+          "rough-diffuser-r010",
+          # bright luminaire ceilings and mirrors
+          "ceiling-85", "ceiling-85-spaced", "mirror-strip", "mirror-behind",
+          # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
+          "rough-cavity-45")
 #: the forward model's RMS deviation from the truth allowed per scene (percent, the truth's noise
 #: removed in quadrature): tests/engine/test_model_vs_truth.py and benchmarks/bench_truth.py
 THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "cavity-aperture": 1.5,
                       "cavity-white": 1.5, "mesh-cavity": 1.5,
-                      "rough-diffuser-r030": 2.0, "rough-diffuser-r010": 2.0}
+                      "rough-diffuser-r030": 2.0, "rough-diffuser-r010": 2.0,
+                      # bright luminaire ceilings and mirrors
+                      "ceiling-85": 1.0, "ceiling-85-spaced": 1.0, "mirror-strip": 1.0, "mirror-behind": 1.0,
+                      # plates
+                      "rough-cavity-45": 1.0}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.0015
@@ -74,9 +82,39 @@ def _receivers(ir, grid: str):
     return P, np.tile([0.0, 0.0, 1.0], (len(P), 1))
 
 
+def _render_chunk(args):
+    """One process's share of a grid: receivers ``start …`` with the seeds they get in one run
+    (MitsubaTruth seeds receiver ``i`` of a call with ``seed + 7919·pass + i``)."""
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.mitsuba import MitsubaTruth
+
+    scene, P, N, start, spp, min_passes, seed, target_rel_error, max_passes = args
+    truth = MitsubaTruth(compile_booth(HERE / scene), LIGHTING, spp=spp, passes=min_passes, seed=seed + start)
+    r = truth.illuminance_with_error_lx(P, N, target_rel_error=target_rel_error, max_passes=max_passes)
+    return r.illuminance_lx, r.std_error_lx, r.passes
+
+
+def _render_grid(scene, truth, P, N, *, jobs, spp, min_passes, seed, target_rel_error, max_passes):
+    """(illuminance, standard error, passes) of the receivers ``P``, in ``jobs`` processes (the same
+    values as one process: each receiver keeps its seeds)."""
+    if jobs <= 1:
+        r = truth.illuminance_with_error_lx(P, N, target_rel_error=target_rel_error, max_passes=max_passes)
+        return r.illuminance_lx, r.std_error_lx, r.passes
+    import multiprocessing as mp
+
+    bounds = np.linspace(0, len(P), jobs + 1).round().astype(int)
+    work = [(scene, P[a:b], N[a:b], int(a), spp, min_passes, seed, target_rel_error, max_passes)
+            for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    with mp.get_context("spawn").Pool(len(work)) as pool:
+        parts = pool.map(_render_chunk, work)
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
+
+
 def render_scene(scene: str, grids=None, *, spp: int = SPP_PER_PASS, target_rel_error: float = TARGET_REL_ERROR,
-                 min_passes: int = MIN_PASSES, max_passes: int = MAX_PASSES, seed: int = 0, log=print) -> None:
-    """Render ``scene`` on ``grids`` (default all) and write ``truth-<grid>.csv`` beside its booth."""
+                 min_passes: int = MIN_PASSES, max_passes: int = MAX_PASSES, seed: int = 0, jobs: int = 1,
+                 log=print) -> None:
+    """Render ``scene`` on ``grids`` (default all) and write ``truth-<grid>.csv`` beside its booth
+    (``jobs`` processes per grid; the values do not depend on it)."""
     from lbscene.engine.scene.compile import compile_booth
     from lbscene.engine.truth.mitsuba import VARIANT, MitsubaTruth, mitsuba_version
     from lbscene.engine.truth.validation import GRIDS, TruthData, booth_files_sha256, write_truth_csv
@@ -87,7 +125,8 @@ def render_scene(scene: str, grids=None, *, spp: int = SPP_PER_PASS, target_rel_
     for grid in grids or GRIDS:
         P, N = _receivers(ir, grid)
         t0 = time.perf_counter()
-        res = truth.illuminance_with_error_lx(P, N, target_rel_error=target_rel_error, max_passes=max_passes)
+        E, se, used = _render_grid(scene, truth, P, N, jobs=jobs, spp=spp, min_passes=min_passes, seed=seed,
+                                   target_rel_error=target_rel_error, max_passes=max_passes)
         wall_s = time.perf_counter() - t0
         meta = {
             "scene": scene,
@@ -105,10 +144,10 @@ def render_scene(scene: str, grids=None, *, spp: int = SPP_PER_PASS, target_rel_
             "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         }
         write_truth_csv(truth_path(scene, grid),
-                        TruthData(P, N, res.illuminance_lx, res.std_error_lx, res.passes, meta))
-        rel = res.std_error_lx / res.illuminance_lx
-        log(f"{scene:16s} {grid:5s} {len(P):3d} points  {wall_s:7.0f} s  passes {res.passes.min()}-"
-            f"{res.passes.max()}  std error max {100 * rel.max():.3f} %  RMS {100 * np.sqrt(np.mean(rel ** 2)):.3f} %")
+                        TruthData(P, N, E, se, used, meta))
+        rel = se / E
+        log(f"{scene:16s} {grid:5s} {len(P):3d} points  {wall_s:7.0f} s  passes {used.min()}-"
+            f"{used.max()}  std error max {100 * rel.max():.3f} %  RMS {100 * np.sqrt(np.mean(rel ** 2)):.3f} %")
 
 
 def _spread_indices(n: int, k: int) -> np.ndarray:
@@ -168,6 +207,8 @@ def main(argv=None) -> int:
     ap.add_argument("--min-passes", type=int, default=MIN_PASSES)
     ap.add_argument("--max-passes", type=int, default=None,
                     help=f"default {MAX_PASSES} (--check: 256)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="processes per grid (the rendered values do not depend on it)")
     ap.add_argument("--check", action="store_true",
                     help="re-render a few receivers per grid with fresh seeds and compare with the CSVs")
     ap.add_argument("--points", type=int, default=2, help="--check: receivers per grid")
@@ -181,7 +222,8 @@ def main(argv=None) -> int:
         for s in scenes:
             render_scene(s, args.grids, spp=args.spp,
                          target_rel_error=args.target_rel_error or TARGET_REL_ERROR,
-                         min_passes=args.min_passes, max_passes=args.max_passes or MAX_PASSES)
+                         min_passes=args.min_passes, max_passes=args.max_passes or MAX_PASSES,
+                         jobs=args.jobs)
         return 0
     rows = []
     try:

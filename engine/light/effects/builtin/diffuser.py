@@ -2,8 +2,11 @@
 ``diffuser``: a plate below the lamps transmits and scatters their light.
 
 Kind ``geometric`` (and spectral: the plate's transmittance).  Straight paths through the
-plate get its spectral transmittance and the Fresnel angular loss; a diffuse fraction is
-re-emitted from the plate's cells as a Lambertian source.  A ``roughness`` plate (rough
+plate get its spectral transmittance and the Fresnel angular loss; an opal plate's diffuse
+fraction enters with its top face's Fresnel transmittance and is re-emitted from the plate's
+cells with the opal exit law (Lambertian times the bottom face's Fresnel transmittance,
+:func:`lbscene.engine.light.plates.opal_exit_shape`).  The declared transmittance is the
+plate's total at normal incidence (:func:`lbscene.engine.light.plates.reference_transmittance`).  A ``roughness`` plate (rough
 glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on re-emitting
 cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  The plate itself
 (rectangle, transmittances) is :mod:`lbscene.engine.light.plates`.
@@ -16,12 +19,13 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from lbscene.engine.light.effects.physics import (DirectionalSource, LambertianSource, PathChannel,
+from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel,
                                                   PhysicalEffect)
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
-from lbscene.engine.light.plates import (FresnelWeight, diffuser_fraction, diffuser_rect,
-                                         diffuser_transmittance_1nm, is_rough, plate_lobe_footprint_mm,
-                                         plate_slab, slab_relative)
+from lbscene.engine.light.plates import (OpalEntryWeight, diffuser_fraction, diffuser_rect,
+                                         diffuser_transmittance_1nm, is_rough, opal_exit_shape,
+                                         plate_lobe_footprint_mm, plate_slab, reference_transmittance,
+                                         slab_relative)
 
 __all__ = ["DiffuserEffect"]
 
@@ -116,7 +120,6 @@ class DiffuserEffect(PhysicalEffect):
         irradiance :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` (area
         weight :math:`w_s`) of the cell's top face, :math:`ω_i` its direction."""
         from lbscene.engine.light.geometry import quad_subpoints
-        from lbscene.engine.light.rough_slab import clear_slab_normal_transmittance
 
         ir = ctx.ir
         d = ir.diffuser
@@ -126,7 +129,7 @@ class DiffuserEffect(PhysicalEffect):
         top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
         up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
         slab = plate_slab(ir)
-        spec = diffuser_transmittance_1nm(ctx, p) / clear_slab_normal_transmittance(d.ior)
+        spec = diffuser_transmittance_1nm(ctx, p) / reference_transmittance(ir)
         merged: dict = {}
         for pl in direct.per_point(top, up, exclude=(cls.id,)):
             if pl.term.key in merged:
@@ -178,8 +181,9 @@ class DiffuserEffect(PhysicalEffect):
         pts, w = quad_subpoints(polys, 2)
         top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
         up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
-        # light arriving on the top side: cos-weighted and reduced by the Fresnel angular factor
-        terms = direct(top, up, exclude=(cls.id,), incidence_weight=FresnelWeight(d.ior))
+        # light arriving on the top side: cos-weighted and reduced by the top face's Fresnel
+        # transmittance relative to normal incidence (opal_entry_relative)
+        terms = direct(top, up, exclude=(cls.id,), incidence_weight=OpalEntryWeight(d.ior))
         T = diffuser_transmittance_1nm(ctx, p)
         exit_, descr = [], []
         for t in terms:
@@ -188,5 +192,14 @@ class DiffuserEffect(PhysicalEffect):
             descr.append(t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser"))
         if not exit_:
             return out
-        return out + [LambertianSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)),
-                                       np.stack(exit_, axis=1), descr)]
+        M = np.stack(exit_, axis=1)                                             # (C, K) exitance
+        ior = d.ior
+
+        def radiance(dirs):
+            # the scattered light leaves through the bottom face: (1 − F(θ_o)) / (1 − F_h)
+            # times a Lambertian emitter's radiance M/π (plates.opal_exit_shape)
+            g = opal_exit_shape(np.clip(-dirs[..., 2], 0.0, 1.0), ior)        # (C, R)
+            return g[..., None] * (M[:, None, :] / np.pi)
+
+        return out + [DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)), radiance,
+                                        descr)]

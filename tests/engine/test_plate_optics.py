@@ -1,0 +1,108 @@
+"""The forward model's plate laws against plates measured in Mitsuba 3.
+
+``tests/data/validation/plate-optics/<plate>.csv`` holds each plate's directional-hemispherical
+transmittance T(θ) and reflectance R(θ), measured in Mitsuba 3 by reciprocity
+(:func:`lbscene.engine.truth.mitsuba.plate_optics`; written by ``measure_plates.py`` there) for a
+plate declared as a booth declares it.  The model's plate (:mod:`lbscene.engine.light.plates`)
+with the same declaration must transmit and reflect the same; a slow test re-measures.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lbscene.engine.light import plates
+from lbscene.engine.scene.compile import compile_booth
+
+HERE = Path(__file__).resolve().parents[1] / "data" / "validation"
+SCRIPT = HERE / "plate-optics" / "measure_plates.py"
+#: a booth whose diffuser is replaced by each measured plate
+BOOTH = HERE / "rough-diffuser-r030"
+#: allowed |model − Mitsuba| (absolute, besides 3 standard errors): rough slabs (the model's
+#: tables are their own Monte Carlo of the same microfacet physics)
+ROUGH_T_ABS, ROUGH_R_ABS = 0.006, 0.004
+#: opal plates: the model's laws are closed forms of a scattering layer (plates module)
+OPAL_T_REL, OPAL_R_ABS = 0.03, 0.03
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("measure_plates", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+MP = _load()
+
+
+@lru_cache(maxsize=None)
+def _base():
+    return compile_booth(BOOTH)
+
+
+def _ir(name):
+    d = MP.PLATES[name]
+    sc = dict(d["scattering"])
+    if sc["type"] == "lambertian":
+        sc.setdefault("reflectance", None)
+    ir = _base()
+    df = ir.diffuser.model_copy(update={"scattering": sc, "ior": d["ior"], "thickness_mm": d["thickness_mm"]})
+    return ir.model_copy(update={"diffuser": df})
+
+
+def _model(name, mu):
+    d = MP.PLATES[name]
+    ir = _ir(name)
+    T = d["transmittance"] if d["transmittance"] is not None else plates.reference_transmittance(ir)
+    if d["scattering"]["type"] == "lambertian":
+        fd = d["scattering"]["diffuse_fraction"]
+        Tm = T * ((1 - fd) * plates.fresnel_relative(mu, d["ior"]) + fd * plates.opal_entry_relative(mu, d["ior"]))
+    else:
+        Tm = T * plates.slab_relative(ir, mu)
+    return Tm, plates.plate_reflectance(ir, mu, np.array([T]))[:, 0]
+
+
+@pytest.mark.parametrize("name", [n for n in MP.PLATES if MP.PLATES[n]["scattering"]["type"] == "roughness"])
+def test_a_rough_plate_transmits_and_reflects_as_in_mitsuba(name):
+    m = MP.read(name)
+    mu = np.cos(np.deg2rad(m["theta_deg"]))
+    T, R = _model(name, mu)
+    assert np.all(np.abs(T - m["T"]) <= ROUGH_T_ABS + 3 * m["T_se"]), np.c_[m["theta_deg"], m["T"], T]
+    assert np.all(np.abs(R - m["R"]) <= ROUGH_R_ABS + 3 * m["R_se"]), np.c_[m["theta_deg"], m["R"], R]
+
+
+def test_a_non_absorbing_rough_plate_transmits_its_reference_at_normal_incidence():
+    # the declared total transmittance is relative to this value: Mitsuba's plate of the same
+    # roughness and index transmits it too (GGX α 0.3: 0.81, not the clear slab's 0.925)
+    m = MP.read("rough-a030")
+    assert plates.reference_transmittance(_ir("rough-a030")) == pytest.approx(m["T"][0], abs=0.003 + 3 * m["T_se"][0])
+    assert m["T"][0] < 0.85
+
+
+@pytest.mark.parametrize("name", [n for n in MP.PLATES if MP.PLATES[n]["scattering"]["type"] == "lambertian"])
+def test_an_opal_plate_transmits_and_reflects_as_in_mitsuba(name):
+    m = MP.read(name)
+    d = MP.PLATES[name]
+    # the measured plate transmits what it declares at normal incidence
+    assert m["T"][0] == pytest.approx(d["transmittance"], abs=0.01)
+    mu = np.cos(np.deg2rad(m["theta_deg"]))
+    T, R = _model(name, mu)
+    sel = m["theta_deg"] <= 70
+    assert np.all(np.abs(T[sel] / m["T"][sel] - 1) <= OPAL_T_REL + 3 * m["T_se"][sel] / m["T"][sel]), \
+        np.c_[m["theta_deg"], m["T"], T]
+    assert np.all(np.abs(R[sel] - m["R"][sel]) <= OPAL_R_ABS + 3 * m["R_se"][sel]), np.c_[m["theta_deg"], m["R"], R]
+
+
+@pytest.mark.slow
+def test_the_committed_plate_measurements_are_current():
+    pytest.importorskip("mitsuba")
+    for name in MP.PLATES:
+        m = MP.read(name)
+        new = MP.measure(name, spp=MP.SPP, passes=4)
+        se = np.hypot(m["T_se"], new["T_se"])
+        assert np.all(np.abs(new["T"] - m["T"]) <= 4 * se + 1e-4), name
