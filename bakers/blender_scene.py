@@ -703,6 +703,25 @@ class BlenderScene:
                 nb.link(mix.outputs[0], out.inputs["Surface"])
             else:
                 nb.link(transp.outputs[0], out.inputs["Surface"])
+            if sheet.ior is not None:
+                # its faces reflect: the clear plate's R(θ) = 1 − S(θ) (both faces, incoherent),
+                # a sharp mirror; light the plate sends back (into a luminaire cavity, or down into
+                # the booth) takes part in the inter-reflection as it does in the model
+                surf = out.inputs["Surface"].links[0].from_socket
+                n = float(sheet.ior)
+                r0 = ((n - 1.0) / (n + 1.0)) ** 2
+                s0 = (1.0 - r0) / (1.0 + r0)
+                refl = nb.math("SUBTRACT", 1.0, nb.math("MULTIPLY", self._slab_transmittance_ratio(nb, n), s0))
+                comb_r = nb.new("ShaderNodeCombineColor")
+                for ch in ("Red", "Green", "Blue"):
+                    nb.link(refl, comb_r.inputs[ch])
+                mirror = nb.new("ShaderNodeBsdfGlossy", distribution="GGX")
+                mirror.inputs["Roughness"].default_value = 0.0
+                nb.link(comb_r.outputs[0], mirror.inputs["Color"])
+                add = nb.new("ShaderNodeAddShader")
+                nb.link(surf, add.inputs[0])
+                nb.link(mirror.outputs[0], add.inputs[1])
+                nb.link(add.outputs[0], out.inputs["Surface"])
             self._colour_sockets.append((colour_sock, t, "factor"))
         obj.data.materials.append(m)
         obj["lbscene_role"] = sheet.role

@@ -429,8 +429,8 @@ def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[Tran
                      f"in the bake")
     if fd > 0:
         notes.append(f"diffuser diffuse fraction {float(fd):g}: the scattered light leaves the sheet with "
-                     f"the opal exit law; its entry weight (1 - F(θi)) and the plate's reflection are not "
-                     f"in the bake (the model has them)")
+                     f"the opal exit law; its entry weight (1 - F(θi)) is not in the bake (the model has "
+                     f"it); the plate reflects as a clear plate's faces do")
     from lbscene.engine.light.plates import reference_transmittance
 
     return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,

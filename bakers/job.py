@@ -30,8 +30,8 @@ Conventions
 ``JOB_VERSION`` changes whenever the meaning of the serialised form changes;
 versions in :data:`READABLE_JOB_VERSIONS` still load (version 2 only added
 fields: a version 1 job means what it meant; version 3 made an area emitter hidden from the
-camera a black body to camera rays instead of one they pass through, and older jobs are
-rendered that way too);
+camera a black body to camera rays instead of one they pass through, and a thin sheet with an
+``ior`` reflect, and older jobs are rendered that way too);
 :attr:`BakeJob.content_hash` (sha256 of the canonical JSON) identifies a job
 for the bake cache.
 
@@ -93,7 +93,8 @@ __all__ = [
 
 JOB_VERSION = 3
 #: versions this lbscene loads (2 added IES profiles, axial weights and windows on area emitters;
-#: 3: an area emitter with ``visible_to_camera`` False stops camera rays as a black body)
+#: 3: an area emitter with ``visible_to_camera`` False stops camera rays as a black body, a thin
+#: sheet with an ``ior`` reflects)
 READABLE_JOB_VERSIONS = (1, 2, 3)
 JOB_KIND = "lbscene.bake_job"
 
@@ -408,7 +409,11 @@ class TransmissiveSheet(StrictModel):
     plate's Fresnel transmittance (both faces, incoherent multiple reflections),
     normalised to ``transmittance`` at 0°.  A ``diffuse_fraction`` of the
     transmitted light is scattered (Translucent BSDF), leaving with the opal exit
-    law (1 − F(θ))/(1 − F_h) at the viewing angle when ``ior`` is set.  Light
+    law (1 − F(θ))/(1 − F_h) at the viewing angle when ``ior`` is set.  With ``ior``
+    its faces also reflect, as a sharp mirror of the clear plate's reflectance
+    R(θ) = 1 − S(θ) (both faces, incoherent; 8.2 % at 0° for n = 1.52), so the
+    light a plate sends back into a luminaire cavity or down into the booth takes
+    part in the inter-reflection (job version 3).  Light
     goes straight through, so Cycles samples point lamps behind it directly
     (shadow rays are attenuated, not blocked); ``roughness`` is recorded but
     only blurs in the ``glass`` model (for the seed's 0.04, α = 0.0016: a spread

@@ -18,7 +18,6 @@ blockers (filter masks, box walls, the lamp's own body), and what lies on or beh
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 import bake_closed_forms as cf
