@@ -522,8 +522,8 @@ class _FilteredProblem(_ReshapedProblem):
         return np.concatenate(rows)
 
     def solve(self) -> FitResult:
-        """Levenberg–Marquardt on the exact Jacobian (:meth:`_jacobian`), the output scales
-        solved linearly at every step (variable projection); no finite differences."""
+        """Levenberg–Marquardt on the exact Jacobian (:meth:`_jacobian`, with the output scales'
+        columns), the output scales solved linearly after every step; no finite differences."""
         lo = np.array([self.free[i].bounds[0] for i in self.nl], float)
         hi = np.array([self.free[i].bounds[1] for i in self.nl], float)
         x = np.clip(np.array([self.free[i].initial for i in self.nl], float), lo, hi)
@@ -536,15 +536,21 @@ class _FilteredProblem(_ReshapedProblem):
 
         sc, r, chi2 = state(x)
         mu, ok, msg = 1e-3, True, "converged"
+        idx = [self.groups.index(g) for g in self.lin_groups]
+        nb = len(x)
         for _ in range(FILTER_LM_ITERATIONS):
-            J = self._jacobian(x, sc)
+            # the output scales move with the coefficients: their columns join the Jacobian
+            # (the step is taken jointly, the scales then solved again exactly)
+            A, T, *_ = self.components(x)
+            D, _t = self._design(A, T)
+            J = np.hstack([self._jacobian(x, sc), D[:, idx]])
             H = J.T @ J
             gvec = J.T @ r
             improved = False
             for _try in range(12):
-                Hd = H + mu * (np.diag(np.diag(H)) + 1e-9 * np.eye(len(x)))
+                Hd = H + mu * (np.diag(np.diag(H)) + 1e-9 * np.eye(len(H)))
                 try:
-                    step = np.linalg.solve(Hd, -gvec)
+                    step = np.linalg.solve(Hd, -gvec)[:nb]
                 except np.linalg.LinAlgError:
                     mu *= 10.0
                     continue
