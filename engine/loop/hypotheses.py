@@ -570,6 +570,22 @@ class _FilteredProblem(_ReshapedProblem):
         else:
             ok, msg = False, f"stopped after {FILTER_LM_ITERATIONS} iterations"
         self.components(x)
+        self.solution = (x, sc, ok, msg)
+        return self._result(x, sc, ok, msg, fitted=True)
+
+    #: while the basis is searched, the standard errors (a finite-difference Jacobian over every
+    #: coefficient) are skipped; the chosen fit gets them (:meth:`with_errors`)
+    skip_errors = False
+
+    def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):
+        if self.skip_errors:
+            return {}, np.eye(len(self.free)), []
+        return super()._errors(x_nl, scales, chi2, noise_limited=noise_limited)
+
+    def with_errors(self) -> FitResult:
+        """The solved fit again, with its standard errors."""
+        self.skip_errors = False
+        x, sc, ok, msg = self.solution
         return self._result(x, sc, ok, msg, fitted=True)
 
 
@@ -600,6 +616,7 @@ def fit_filter_by_evidence(problem: FitProblem, fit: FitResult, known: bool):
 
     def run(knots, init):
         fp = _FilteredProblem(problem, fit, known, initial_log_1nm=init, knots_nm=knots)
+        fp.skip_errors = True
         res = fp.solve()
         bic = res.chi2 + len(fp.nl) * logn
         k = fp._basis.shape[1]
@@ -641,7 +658,7 @@ def fit_filter_by_evidence(problem: FitProblem, fit: FitResult, known: bool):
         if improved is None:
             break
         best = improved
-    return best[0], best[1], tried
+    return best[0], best[0].with_errors(), tried
 
 
 class _AgedProblem(_ReshapedProblem):
