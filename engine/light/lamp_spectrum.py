@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects.builtin.lamp_spectrum_shift import LampSpectrumShiftEffect, shifted_spectrum_1nm
+from .effects.builtin.lamp_spectrum_shift import LampSpectrumShiftEffect, aged_spectrum_1nm
 from .effects.builtin.spectral_filter import SpectralFilterEffect
 from .effects.physics import effect_params, lamp_selected
 
@@ -26,7 +26,7 @@ def lamp_spectrum_1nm(ir, lamp, effects: dict) -> np.ndarray:
     if "lamp_spectrum_shift" in effects:
         p = effect_params(LampSpectrumShiftEffect, effects["lamp_spectrum_shift"])
         if lamp_selected(p, lamp.id):
-            e = shifted_spectrum_1nm(e, p.shift_nm, p.tilt)
+            e = aged_spectrum_1nm(e, p.shift_nm, p.tilt)
     if "spectral_filter" in effects:
         p = effect_params(SpectralFilterEffect, effects["spectral_filter"])
         fid = SpectralFilterEffect.filter_for(ir, p, lamp)

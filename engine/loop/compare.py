@@ -75,11 +75,11 @@ class CompareResult:
         f = self.fit
         if f.tile_bands_pred is None:
             return []
-        g = self.meas.ir.grid
+        centres = f.tile_centres_nm if f.tile_centres_nm is not None else self.meas.ir.grid.centres_nm
         res = f.spectral_residual_percent
         return [{"centre_nm": float(c), "measured": float(m), "predicted": float(p),
                  "residual_percent": None if not np.isfinite(x) else round(float(x), 4)}
-                for c, m, p, x in zip(g.centres_nm, f.tile_bands_meas, f.tile_bands_pred, res)]
+                for c, m, p, x in zip(centres, f.tile_bands_meas, f.tile_bands_pred, res)]
 
     def to_json(self) -> dict:
         f = self.fit

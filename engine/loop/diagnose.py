@@ -23,8 +23,10 @@ are held at the booth's values, since refitting them cannot change a score.
 Verdict:
 
 ``none``
-    the base residual is already at the noise level (χ²/dof within 3σ of 1):
-    nothing is invented.
+    the booth as declared passes a χ² goodness-of-fit test at level :data:`GOF_ALPHA`
+    (all the data, and the readings and the white tile each on their own:
+    :math:`P(χ^2_ν ≥ χ^2) ≥ α`) and no suspect improves the fit significantly: nothing is
+    invented.
 ``missing:<id>``
     one suspect beats every other by more than :data:`TIE_MARGIN` BIC units
     and the base by more than :data:`SIGNIFICANT`.
@@ -34,6 +36,14 @@ Verdict:
     (:mod:`lbscene.engine.loop.plan`) or declare the lamp output known.
 ``unexplained``
     no suspect helps significantly: the report says where it fails.
+``unstable:<verdict> (<share>), <rival> (<share>)…``
+    the verdict the data give recurs in fewer than :data:`STABLE_SHARE` of the noise
+    resamples (:class:`Confidence`): it is given with the verdicts the resamples give instead
+    and their shares, and no edit is suggested.
+
+Explanations that change spectra only (a filter in front of the lamps, the lamps' spectrum
+reshaped) are one thing to a spectroradiometer: when the best is one of them, the others that
+also reach the noise are tied with it, the one with fewer parameters first.
 """
 
 from __future__ import annotations
@@ -50,7 +60,7 @@ from .hypotheses import HYPOTHESES, applicable_hypotheses
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
            "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
-           "noise_model"]
+           "noise_model", "GOF_ALPHA", "STABLE_SHARE", "chi2_limit"]
 
 #: prefix of a hypothesis (hardware the booth does not declare) among the diagnosis' candidates
 HYPOTHESIS_PREFIX = "hypothesis:"
@@ -65,8 +75,13 @@ TIE_MARGIN = 10.0
 PAIR_CANDIDATES = 4
 #: Resamples of the linearised parametric bootstrap behind a verdict's recurrence.
 BOOTSTRAP_SAMPLES = 2000
-#: χ²/dof consistency with noise: within this many standard deviations of 1.
+#: χ²/dof consistency with noise: within this many standard deviations of 1 (the level test's z).
 NOISE_Z = 3.0
+#: Significance level of the goodness-of-fit test behind "nothing is missing": each data block's
+#: χ² must have an upper-tail probability P(χ²_dof ≥ χ²) of at least this.
+GOF_ALPHA = 0.01
+#: A verdict that recurs in fewer of the noise resamples than this is reported as unstable.
+STABLE_SHARE = 0.5
 #: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
 #: margins; 1e-8 made weakly identified candidates (tube-end falloff: level and length) crawl
 #: along their valley for 400+ evaluations without changing the score.
@@ -116,25 +131,36 @@ def noise_model(meas) -> NoiseModel:
                       meter_percent=pct, model_percent=u)
 
 
-def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: float | None = None,
-                          spectral_noise_percent: float | None = None, level_test: bool = False) -> bool:
-    """Residuals consistent with the noise.
+def chi2_limit(dof: int, alpha: float = GOF_ALPHA) -> float:
+    """The largest χ² the goodness-of-fit test accepts on ``dof`` degrees of freedom:
+    the upper ``alpha`` quantile of the χ² distribution."""
+    from scipy.special import chdtri
 
-    Each data block (illuminance readings, white-tile bands) on its own:
-    χ²/dof within ``z`` standard deviations of 1.  With ``level_test`` (lamp
-    output declared known) also the mean illuminance residual must be within
-    ``z`` standard errors of 0 — a level mismatch of a fraction of the noise
-    is invisible in χ² but certain in the mean of 55 readings.
+    return float(chdtri(max(int(dof), 1), alpha))
+
+
+def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: float | None = None,
+                          spectral_noise_percent: float | None = None, level_test: bool = False,
+                          alpha: float = GOF_ALPHA) -> bool:
+    """Residuals consistent with the noise: a χ² goodness-of-fit test at level ``alpha``.
+
+    The whole fit and each data block on its own (the illuminance readings on
+    ``n − k`` degrees of freedom, the white-tile bands on ``n − 1``) must have
+    :math:`P(χ^2_\\nu \\ge χ^2) \\ge α`; a 1.2 % residual at 1 % noise on 55 readings
+    (χ² ≈ 79, p ≈ 0.007) fails it.  With ``level_test`` (lamp output declared known) also the
+    mean illuminance residual must be within ``z`` standard errors of 0 — a level mismatch of a
+    fraction of the noise is invisible in χ² but certain in the mean of 55 readings.
     """
-    dof = fit.dof
-    if fit.chi2 / dof > 1.0 + z * math.sqrt(2.0 / dof):
+    if fit.chi2 > chi2_limit(fit.dof, alpha):
         return False
-    k = fit.n_params
+    # parameters that shape spectra only are paid for by the tile's bands, the others by the readings
+    k_s = _spectral_parameters(fit)
+    k = fit.n_params - k_s
     if noise_percent:
         r = fit.residual_percent / noise_percent
         if r.size:
             d = max(r.size - k, 1)
-            if float(r @ r) / d > 1.0 + z * math.sqrt(2.0 / d):
+            if float(r @ r) > chi2_limit(d, alpha):
                 return False
             if level_test and abs(r.mean()) * math.sqrt(r.size) > z:
                 return False
@@ -143,10 +169,24 @@ def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: flo
         if s is not None:
             s = s[np.isfinite(s)] / spectral_noise_percent
             if s.size > 2:
-                d = max(s.size - 1, 1)
-                if float(s @ s) / d > 1.0 + z * math.sqrt(2.0 / d):
+                if float(s @ s) > chi2_limit(max(s.size - 1 - k_s, 1), alpha):
                     return False
     return True
+
+
+def _spectral_parameters(fit: FitResult) -> int:
+    """How many of a fit's free parameters change spectra only (a hypothesised filter's
+    coefficients, a spectral effect's parameters)."""
+    from lbscene.engine.light.effects.registry import available_effects
+
+    if not fit.fitted:
+        return 0
+    eff = available_effects()
+    n = 0
+    for fp in fit.free:
+        if fp.scope == "hypothesis" or (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral"):
+            n += 1
+    return n
 
 
 def moran_i(points: np.ndarray, r: np.ndarray, k: int = 4) -> float:
@@ -216,7 +256,7 @@ def _r(x, nd=4):
     return round(float(x), nd)
 
 
-VerdictKind = Literal["none", "missing", "ambiguous", "unexplained"]
+VerdictKind = Literal["none", "missing", "ambiguous", "unexplained", "unstable"]
 
 
 @dataclass(frozen=True)
@@ -230,30 +270,38 @@ class Verdict:
         ``ambiguous``: several explanations (``alternatives``, each a tuple of effects) reach
         the noise within :data:`TIE_MARGIN` of each other;
         ``unexplained``: no single effect nor pair reaches the noise; ``partial`` is the best
-        partial explanation, if one helps significantly.
+        partial explanation, if one helps significantly;
+        ``unstable``: the verdict the data give (``point``) recurs in fewer than
+        :data:`STABLE_SHARE` of the noise resamples; ``rivals`` are the verdicts the resamples
+        give, each with its share, the data's own first.
 
     ``str(verdict)`` is the short form the command line prints and the JSON carries:
-    ``none``, ``missing:a``, ``missing:a+b``, ``ambiguous:a,b+c``, ``unexplained``.
+    ``none``, ``missing:a``, ``missing:a+b``, ``ambiguous:a,b+c``, ``unexplained``,
+    ``unstable:missing:a (26 %), ambiguous:a,b (61 %)``.
     """
 
     kind: VerdictKind
     effects: tuple[str, ...] = ()
     alternatives: tuple[tuple[str, ...], ...] = ()
     partial: tuple[str, ...] = ()
+    rivals: tuple[tuple[str, float], ...] = ()
+    point: "Verdict | None" = None
 
     def __str__(self) -> str:
         if self.kind == "missing":
             return "missing:" + "+".join(self.effects)
         if self.kind == "ambiguous":
             return "ambiguous:" + ",".join("+".join(a) for a in self.alternatives)
+        if self.kind == "unstable":
+            return "unstable:" + ", ".join(f"{v} ({100 * x:.0f} %)" for v, x in self.rivals)
         return self.kind
 
     def __eq__(self, other) -> bool:
         if isinstance(other, str):
             return str(self) == other
         if isinstance(other, Verdict):
-            return (self.kind, self.effects, self.alternatives, self.partial) == \
-                (other.kind, other.effects, other.alternatives, other.partial)
+            return (self.kind, self.effects, self.alternatives, self.partial, self.rivals) == \
+                (other.kind, other.effects, other.alternatives, other.partial, other.rivals)
         return NotImplemented
 
     def __hash__(self) -> int:
@@ -265,9 +313,13 @@ class Verdict:
         return [e for a in self.alternatives for e in a]
 
     def to_json(self) -> dict:
-        return {"kind": self.kind, "effects": list(self.effects),
-                "alternatives": [list(a) for a in self.alternatives], "partial": list(self.partial),
-                "text": str(self)}
+        out = {"kind": self.kind, "effects": list(self.effects),
+               "alternatives": [list(a) for a in self.alternatives], "partial": list(self.partial),
+               "text": str(self)}
+        if self.kind == "unstable":
+            out["rivals"] = [{"verdict": v, "share": round(float(x), 3)} for v, x in self.rivals]
+            out["point"] = self.point.to_json() if self.point is not None else None
+        return out
 
 
 @dataclass
@@ -278,17 +330,22 @@ class Confidence:
     ``delta_bic_vs_next``: its lead over the next explanation; ``recurrence``: the fraction of
     data sets, resampled from the verdict's own model with the measured noise, on which the
     same verdict comes back (linearised parametric bootstrap: each explanation's predictions
-    held at its fit, :data:`BOOTSTRAP_SAMPLES` resamples).
+    held at its fit, :data:`BOOTSTRAP_SAMPLES` resamples); for a tie, a tie or a single
+    explanation among its alternatives counts as the same.  Below :data:`STABLE_SHARE` the
+    verdict is reported ``unstable`` with the verdicts the resamples give (``shares``).
     """
 
     delta_bic_vs_base: float | None
     delta_bic_vs_next: float | None
     recurrence: float | None
     samples: int = 0
+    #: verdict (short form) → fraction of the resamples that give it, largest first
+    shares: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
-                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples}
+                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples,
+                "verdict_shares": {k: _r(v, 3) for k, v in self.shares.items()}}
 
 
 @dataclass
@@ -578,6 +635,8 @@ class _Base:
     known_all: bool                  # every lamp group's output is known
     #: geometry caches shared by the refits on a booth augmented with the same hardware
     ir_caches: dict = field(default_factory=dict)
+    #: the base fit's problem (spectral hypotheses alone are fitted on it, without a refit)
+    problem: object = None
 
     @property
     def ir(self):
@@ -614,7 +673,8 @@ def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list,
               channel_sizes=(base_problem.n_lux + (1 if n_tile else 0), n_tile),
               ctest=dict(noise_percent=noise.percent, spectral_noise_percent=noise.spectral_percent,
                          level_test=bool(meas.known_output_groups)),
-              known_all=bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ()))
+              known_all=bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ()),
+              problem=base_fp)
     return b, joint, held
 
 
@@ -640,6 +700,10 @@ def _candidate_items(ir, lighting: str, effects: dict, candidates) -> tuple[list
                                    and H.id not in candidates):
             continue
         skipped.pop(H.effect, None)
+        if not H.hardware and H.effect in todo:
+            # the same effect, fitted exactly on the base fit's spectra instead of refitted
+            # through the forward model
+            todo.remove(H.effect)
         todo.append(HYPOTHESIS_PREFIX + H.id)
     return todo, skipped
 
@@ -708,6 +772,9 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
     cur_ir, new_eff, free, post, hw, n_params = _configure(b, items)
     m, c = _measurements_for(b, cur_ir, hw)
     noise = b.noise
+    if len(post) == len(items) and b.problem is not None:
+        # spectral factors only: fitted on the base fit itself (its refit would be the same fit)
+        return _finish(b, items, b.problem, b.fit, free, post, hw, n_params, cur_ir)
     prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                       tolerance=SCORING_TOLERANCE)
     starts = [st for H in hw for st in H.starts()]
@@ -725,6 +792,11 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
     fit = prob.solve()
     if cur_ir is not b.ir:
         fit.ir = cur_ir          # the booth this explanation predicts with (plan)
+    return _finish(b, items, prob, fit, free, post, hw, n_params, cur_ir)
+
+
+def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir) -> Suspect | None:
+    """Fit the spectral hypotheses on top of ``fit`` and score the explanation."""
     k = len(free)
     for it, H in post:
         f2 = H.fit_on(prob, fit, b.known_all)
@@ -737,7 +809,7 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
     eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
                  else i for i in items)
     shown, by_effect = _shown_params(items, eids, hw, fit, free)
-    parts = _chi2_parts(fit, noise)
+    parts = _chi2_parts(fit, b.noise)
     gain = (b.parts[0] - parts[0], b.parts[1] - parts[1])
     why_not = _channel_check(items, gain, n_params, b.channel_sizes)
     return Suspect(
@@ -746,7 +818,7 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
         structure_after=moran_i(b.pts, fit.residual_percent) if len(b.pts) else float("nan"),
         params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
         params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
-        hardware={H.id: H.hardware_yaml(cur_ir, fit) for H in hw})
+        hardware={H.id: y for H in hw if (y := H.hardware_yaml(cur_ir, fit))})
 
 
 def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> list[Suspect]:
@@ -755,8 +827,8 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> lis
     # something to explain: its residual above the noise, or a catalog effect that helps
     suspects = []
     for k, item in enumerate(todo):
-        if item.startswith(HYPOTHESIS_PREFIX) and consistent and not any(
-                x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
+        if item.startswith(HYPOTHESIS_PREFIX) and HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].hardware \
+                and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
             continue
         if progress:
             progress(k, len(todo), item)
@@ -784,7 +856,8 @@ def _pair_refits(b: _Base, suspects: list[Suspect], consistent: bool, progress, 
             best_ch = max(own, key=lambda x: x.channel_gain[i]).items[0]
             if best_ch not in top:
                 top.append(best_ch)
-    combos = list(combinations(top, 2))
+    # two spectral factors together are one spectral factor (a filter follows any reshaping)
+    combos = [cb for cb in combinations(top, 2) if not _spectral_only(cb)]
     pairs: list[Suspect] = []
     for k, (a, c) in enumerate(combos):
         if progress:
@@ -813,27 +886,46 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
                   refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
     d.consistent = consistent
     d.where = _where(meas, b.fit)
-    d.verdict = _decide(consistent, [(x.effects, x.score, x.explains) for x in suspects if not x.not_eligible],
-                        [(x.effects, x.score, x.explains) for x in pairs if not x.not_eligible])
+    d.verdict = _decide(consistent, [_scored(x) for x in suspects if not x.not_eligible],
+                        [_scored(x) for x in pairs if not x.not_eligible])
     d.confidence = _confidence(d, b.bic, b.noise)
     _explain(d, meas, base_problem.effects, b.noise)
+    d.verdict = _unstable(d.verdict, d.confidence)
+    if d.verdict.kind == "unstable":
+        _explain_unstable(d)
     return d
 
 
 def _decide(base_explains: bool, singles, pairs) -> Verdict:
     """The verdict from scored explanations: ``(effects, ΔBIC vs the booth as is, reaches the
-    noise?)`` for each single effect and each pair (see :class:`Verdict`).  The same rule scores
-    the data and every bootstrap resample."""
+    noise?[, acts on spectra only?, free parameters])`` for each single effect and each pair
+    (see :class:`Verdict`).  The same rule scores the data and every bootstrap resample.
+
+    Explanations that act on spectra only (a filter in front of the lamps, the lamps' spectrum
+    reshaped) multiply every light path by the same function of wavelength: a
+    spectroradiometer cannot tell them apart, whatever BIC margin the parametrisation makes.
+    When the best is one and another also reaches the noise significantly, they are tied,
+    the one with fewer parameters first."""
     helpful = [h for h in singles if h[1] > SIGNIFICANT]
     if base_explains and not helpful:
         return Verdict("none")
+
+    def spectral(h):
+        return len(h) > 3 and bool(h[3])
 
     def pick(cands, reach):
         best = max(reach, key=lambda h: h[1])
         # a rival within the tie margin counts if it is significant or reaches the noise too: a
         # best at ΔBIC 14 does not beat one at 9 that explains the data as well
-        tied = sorted((h for h in cands if h[1] >= best[1] - TIE_MARGIN and (h[2] or h[1] > SIGNIFICANT)),
-                      key=lambda h: -h[1])
+        tied = [h for h in cands if h[1] >= best[1] - TIE_MARGIN and (h[2] or h[1] > SIGNIFICANT)]
+        same = []
+        if spectral(best):
+            same = [h for h in cands if spectral(h) and h[2] and h[1] > SIGNIFICANT
+                    and all(h[0] != t[0] for t in tied)]
+        if same or (spectral(best) and any(spectral(h) and h[0] != best[0] for h in tied)):
+            tied = sorted(tied + same, key=lambda h: (h[4] if len(h) > 4 else 0, -h[1]))
+        else:
+            tied = sorted(tied, key=lambda h: -h[1])
         if len(tied) == 1:
             return Verdict("missing", best[0])
         return Verdict("ambiguous", alternatives=tuple(h[0] for h in tied))
@@ -851,20 +943,36 @@ def _decide(base_explains: bool, singles, pairs) -> Verdict:
     return Verdict("unexplained", partial=partial[0] if partial else ())
 
 
+def _scored(x: Suspect) -> tuple:
+    """The tuple :func:`_decide` scores an explanation by."""
+    return (x.effects, x.score, x.explains, _spectral_only(x.items), x.n_params)
+
+
+def _spectral_only(items) -> bool:
+    """Whether every item of an explanation acts on spectra only."""
+    return all(_channels(i) == ("spectral",) for i in items)
+
+
 def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidence:
     """ΔBIC margins and the recurrence of the verdict under resampled noise.
 
     Linearised parametric bootstrap: data are redrawn from the verdict's own model with the
     meter noise, y* = ŷ_W + σ·ε; an explanation k's χ² then moves from its fitted value by
     2·d_k·ε (d_k: its predictions minus the verdict's, in noise units — the refit is taken as
-    fixed, which is exact to first order), and the verdict's own χ² is drawn from χ²_dof.  The
-    same decision rule (:func:`_decide`) is applied to each resample.
+    fixed, which is exact to first order), and the verdict's own χ² is drawn from χ²_dof.  For
+    ``unexplained`` the model resampled is the best partial explanation with the structure it
+    leaves kept: its χ² is drawn as χ²_dof plus the excess it leaves (χ² − dof).  The same
+    decision rule (:func:`_decide`) is applied to each resample; ``shares`` counts the verdicts
+    they give.
     """
     v = d.verdict
     hyps = [x for x in d.suspects + d.pairs if not x.not_eligible]
     by_name = {x.effects: x for x in hyps}
+    # the model resampled: the verdict's explanation (of a tie, the best that reaches the noise)
+    alts = [by_name[a] for a in v.alternatives if a in by_name] if v.kind == "ambiguous" else []
+    reach = [x for x in alts if x.explains]
     winner = by_name.get(v.effects) if v.kind == "missing" else (
-        by_name.get(v.alternatives[0]) if v.kind == "ambiguous" else (
+        max(reach or alts, key=lambda x: x.score) if alts else (
             by_name.get(v.partial) if v.kind == "unexplained" and v.partial else None))
     wfit = winner.fit if winner is not None else d.base
     w_score = winner.score if winner is not None else 0.0
@@ -880,36 +988,97 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidenc
     eps = rng.standard_normal((BOOTSTRAP_SAMPLES, n))
     dof_w = max(wfit.dof, 1)
     chi2_w = rng.chisquare(dof_w, BOOTSTRAP_SAMPLES)
-    limit = dof_w * (1.0 + NOISE_Z * math.sqrt(2.0 / dof_w))
+    if v.kind == "unexplained":
+        chi2_w = chi2_w + max(wfit.chi2 - dof_w, 0.0)
+    limit = chi2_limit(dof_w)
 
     def moved(fit, chi2):
         dk = fit.residual_percent / noise.percent - z_w
         return chi2 + 2.0 * (eps @ dk)
 
     base_chi2 = moved(d.base, d.base.chi2) if winner is not None else chi2_w
-    base_limit = max(d.base.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(d.base.dof, 1)))
-    rows = []
+    base_ok = base_chi2 <= chi2_limit(max(d.base.dof, 1))
+    cols = []
     for x in hyps:
         c = chi2_w if x is winner else moved(x.fit, x.chi2)
-        lim = limit if x is winner else max(x.fit.dof, 1) * (1.0 + NOISE_Z * math.sqrt(2.0 / max(x.fit.dof, 1)))
+        lim = limit if x is winner else chi2_limit(max(x.fit.dof, 1))
         # score = base BIC − BIC: the parameter penalties are those of the fits
-        pen = x.chi2 - x.score - d.base.chi2       # (k_x − k_base)·ln n
-        rows.append((x, c, c <= lim, pen))
+        pen = d.base.chi2 - x.chi2 - x.score       # (k_x − k_base)·ln n
+        cols.append((x, base_chi2 - (c + pen), c <= lim))
+    meta = [(x.effects, len(x.effects) > 1, _spectral_only(x.items), x.n_params) for x, _, _ in cols]
+    sc_rows = np.stack([sc for _, sc, _ in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES
+    ok_rows = np.stack([ok for _, _, ok in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES
+    counts: dict[str, int] = {}
     same = 0
     for b in range(BOOTSTRAP_SAMPLES):
-        bc = base_chi2[b] if np.ndim(base_chi2) else base_chi2
         singles, pairs = [], []
-        for x, c, ok, pen in rows:
-            score = bc - (c[b] + pen)
-            (pairs if len(x.effects) > 1 else singles).append((x.effects, score, bool(ok[b])))
-        same += _decide(bool(bc <= base_limit), singles, pairs) == v
-    return Confidence(w_score if winner else None, vs_next, same / BOOTSTRAP_SAMPLES, BOOTSTRAP_SAMPLES)
+        for (eff, is_pair, spec, k), sc, ok in zip(meta, sc_rows[b], ok_rows[b]):
+            (pairs if is_pair else singles).append((eff, sc, ok, spec, k))
+        verdict = _decide(bool(base_ok[b]), singles, pairs)
+        key = _share_key(verdict, v)
+        counts[key] = counts.get(key, 0) + 1
+        same += _supports(verdict, v)
+    shares = {k: c / BOOTSTRAP_SAMPLES for k, c in sorted(counts.items(), key=lambda kv: -kv[1])}
+    return Confidence(w_score if winner else None, vs_next, same / BOOTSTRAP_SAMPLES, BOOTSTRAP_SAMPLES,
+                      shares)
+
+
+def _supports(r: Verdict, v: Verdict) -> bool:
+    """Whether a resample's verdict ``r`` is the verdict ``v``: the same, or for a tie, a tie or
+    a single explanation among its alternatives (a tie says the cause is one of them)."""
+    if v.kind == "ambiguous" and r.kind in ("missing", "ambiguous"):
+        named = [r.effects] if r.kind == "missing" else list(r.alternatives)
+        return set(named) <= set(v.alternatives)
+    return r == v
+
+
+def _share_key(r: Verdict, v: Verdict) -> str:
+    """The short form a resample's verdict is counted under: a tie of the same explanations as
+    ``v``'s in another order counts as ``v``; other ties in a fixed order."""
+    if r.kind == "ambiguous":
+        if v.kind == "ambiguous" and set(r.alternatives) == set(v.alternatives):
+            return str(v)
+        return str(Verdict("ambiguous", alternatives=tuple(sorted(r.alternatives))))
+    return str(r)
+
+
+def _unstable(v: Verdict, c: Confidence | None) -> Verdict:
+    """``v`` itself when it recurs in at least :data:`STABLE_SHARE` of the resamples, else an
+    ``unstable`` verdict listing it and its rivals with their shares (those of 1 % or more)."""
+    if c is None or c.recurrence is None or c.recurrence >= STABLE_SHARE:
+        return v
+    rivals = [(str(v), c.recurrence)] + [(k, x) for k, x in c.shares.items() if k != str(v) and x >= 0.01]
+    return Verdict("unstable", effects=v.effects, alternatives=v.alternatives, partial=v.partial,
+                   rivals=tuple(rivals), point=v)
+
+
+def _gof_line(fit: FitResult, consistent: bool) -> str:
+    """The goodness-of-fit test of the booth as declared (:func:`consistent_with_noise`), in words."""
+    from scipy.special import chdtrc
+
+    p = float(chdtrc(max(fit.dof, 1), fit.chi2))
+    return (f"goodness of fit of the booth as declared: χ² = {fit.chi2:.1f} on {fit.dof} degrees of "
+            f"freedom, p = {p:.2g}; tested at α = {100 * GOF_ALPHA:g} % on all the data and on each "
+            f"block (readings, white tile): {'consistent with the noise' if consistent else 'above the noise'}")
+
+
+def _explain_unstable(d: "Diagnosis") -> None:
+    """An unstable verdict says so first, with its rivals, and suggests no edit."""
+    v, c = d.verdict, d.confidence
+    rivals = ", ".join(f"{r} in {100 * x:.0f} %" for r, x in v.rivals[1:])
+    d.explanation.insert(0, (
+        f"unstable: these data give {v.point}, but the same verdict comes back in only "
+        f"{100 * c.recurrence:.0f} % of {c.samples} noise resamples" +
+        (f" (rivals: {rivals})" if rivals else "") +
+        "; no edit is suggested: measure more (`lbscene plan`) or with less noise"))
+    d.snippet = None
 
 
 def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> None:
     """The verdict's explanation lines and the booth-file snippet."""
     base, suspects, v = d.base, d.suspects, d.verdict
     red = base.chi2 / base.dof
+    d.explanation.append(_gof_line(base, d.consistent))
     share = noise.model_share(base.rmse_percent)
     if share is not None:
         d.explanation.append(f"the declared model uncertainty ({noise.model_percent:g} %) covers "
@@ -948,10 +1117,18 @@ def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> No
     if v.kind == "ambiguous":
         alts = [by_name[a] for a in v.alternatives]
         d.tied = v.tied
+        spec = [s for s in alts if _spectral_only(s.items)]
+        if len(spec) > 1:
+            d.explanation.append(
+                "a filter in front of the lamps and the lamps' own spectrum reshaped are the same to a "
+                "spectroradiometer (each multiplies every light path by one function of wavelength): "
+                "the white tile cannot tell " + " from ".join(s.effect for s in spec) +
+                ", the simpler first, whatever BIC margin their parametrisations make")
         d.explanation.append(
             "these explanations fit the data equally well (BIC within "
-            f"{TIE_MARGIN:g}): " + ", ".join(f"{s.effect} (RMSE {s.rmse_percent_after:.2f} %, score "
-                                              f"{s.score:.1f})" for s in alts))
+            f"{TIE_MARGIN:g}, or the same spectral factor): " +
+            ", ".join(f"{s.effect} (RMSE {s.rmse_percent_after:.2f} %, score {s.score:.1f}, "
+                      f"{s.n_params} parameters)" for s in alts))
         d.explanation.append("run `lbscene plan` for the points that tell them apart, or declare the "
                              "lamp output known (known_output_groups in the measurement set)")
     else:

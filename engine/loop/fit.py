@@ -271,6 +271,8 @@ class FitResult:
     tile_band_mask: np.ndarray | None
     tile_1nm_pred: np.ndarray | None
     success: bool = True
+    #: centres of the bands the white tile is compared in (:func:`tile_grid`)
+    tile_centres_nm: np.ndarray | None = None
     message: str = ""
     nfev: int = 0
     fitted: bool = True
@@ -336,6 +338,28 @@ class FitResult:
 
 # --------------------------------------------------------------------------- the problem
 
+def tile_grid(tile, render_grid):
+    """The bands the white-tile spectrum is compared in.
+
+    Where the instrument samples finer than the render bands (a spectroradiometer at 5 nm
+    resolves a filter's 15 nm dip that 20 nm bands average away), one band per sample within
+    380–780 nm, centred on it and as wide as the sampling interval: the model's band mean is
+    what a spectroradiometer of that (rectangular) bandwidth reads there, compared with the
+    sample itself.  Otherwise the render bands, compared with the measured spectrum's band means.
+    """
+    from lbscene.engine.spectra.bands import BandGrid
+
+    step = getattr(tile, "sampling_nm", None)
+    first = getattr(tile, "first_sample_nm", None)
+    if step is None or first is None or step >= render_grid.width_nm or step < 1.0:
+        return render_grid
+    c0 = first + step * max(np.ceil((380.0 + step / 2 - first) / step), 0.0)
+    count = int(np.floor((780.0 - step / 2 - c0) / step + 1e-9)) + 1
+    if count < render_grid.count:
+        return render_grid
+    return BandGrid(first_centre_nm=float(c0), width_nm=float(step), count=count)
+
+
 @dataclass
 class FitProblem:
     """Measurements + a model configuration (enabled effects, free parameters).
@@ -381,11 +405,19 @@ class FitProblem:
         self.meter = np.concatenate(meter)
         self.sigma_e = self.noise_percent / 100.0
         self.sigma_s = self.spectral_noise_percent / 100.0
+        self.tile_grid = tile_grid(m.tile, self.ir.grid) if m.tile is not None else None
         if m.tile is not None:
-            g = self.ir.grid
+            g = self.tile_grid
             inside = np.array([m.tile.covered[(np.arange(360, 831) >= lo) & (np.arange(360, 831) <= hi)].all()
                                for lo, hi in zip(g.edges_nm[:-1], g.edges_nm[1:])])
-            self.tile_meas = g.integrate(m.tile.radiance_1nm)
+            if g is self.ir.grid:
+                self.tile_meas = g.integrate(m.tile.radiance_1nm)
+            else:   # the samples themselves (the 1 nm spectrum interpolates them linearly)
+                wl = np.arange(360.0, 831.0)
+                self.tile_meas = np.interp(g.centres_nm, wl, m.tile.radiance_1nm)
+                cw = wl[m.tile.covered]
+                # both 1 nm neighbours of a sample measured (the interpolation is exact there)
+                inside = (g.centres_nm >= cw.min()) & (g.centres_nm <= cw.max())
             self.tile_mask = inside & (self.tile_meas > 0.02 * self.tile_meas.max())
         else:
             self.tile_meas = None
@@ -429,7 +461,7 @@ class FitProblem:
                                          rows=[self.tile_row])
                 T1.append(spec[0] * refl / np.pi)
             T1 = np.stack(T1)
-            T = self.ir.grid.integrate(T1)
+            T = self.tile_grid.integrate(T1)
         out = (A, T, T1, eff, lo)
         self._last = (key, out)
         return out
@@ -533,7 +565,8 @@ class FitProblem:
             n_residuals=self.n_residuals, lux_pred=lux_pred,
             lux_meas=self.meas.illuminance.lux if self.n_lux else None,
             tile_bands_pred=tile_pred, tile_bands_meas=self.tile_meas, tile_band_mask=self.tile_mask,
-            tile_1nm_pred=tile1, success=success, message=message, nfev=self.nfev, fitted=fitted)
+            tile_1nm_pred=tile1, success=success, message=message, nfev=self.nfev, fitted=fitted,
+            tile_centres_nm=self.tile_grid.centres_nm if self.tile_grid is not None else None)
 
     def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):
         """Standard errors and correlations from the Jacobian over all free parameters.

@@ -24,8 +24,12 @@ hypothesis          effect it turns on   channel   what is fitted
                                                    footprint: the opening's two extents
 ``smooth_filter``   ``spectral_filter``  spectral  a transmittance in front of every lamp,
                                                    :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)` on
-                                                   :data:`FILTER_BASIS` cubic B-splines over
-                                                   380–780 nm, with its uncertainty
+                                                   cubic B-splines over the measured range, as
+                                                   many as the BIC chooses (knots down to the
+                                                   tile's sampling), with its uncertainty
+``lamp_ageing``     ``lamp_spectrum_     spectral  each lamp's spectrum shifted and tilted at
+                    shift``                        its declared luminous output: the shift and
+                                                   the tilt (not hardware: always tried)
 ==================  ===================  ========  =============================================
 
 The plate hypotheses are refitted like catalog effects (the forward model on the augmented
@@ -40,7 +44,12 @@ path by :math:`T(λ)`, so with :math:`E_{g,i}(λ)` the spectral irradiance of la
     L_{g,b}(T) = \\frac{ρ}{π} \\int_b T(λ)\\,E_{g,\\text{tile}}(λ)\\,dλ ,
 
 and the coefficients :math:`b_k` enter the same least-squares problem as the groups'
-output scales.  With the lamp output fitted, an overall factor on :math:`T` is the output
+output scales (Levenberg–Marquardt on the exact Jacobian :math:`∂T/∂b_k = T B_k`, the scales
+solved linearly at each step).  The filter's resolution is the data's to choose: it is fitted on
+6, 12, 24, 48, … uniform B-splines up to a knot spacing equal to the width of the bands the tile
+is compared in (the instrument's sampling interval, see :func:`lbscene.engine.loop.fit.tile_grid`),
+and the basis of least :math:`\\mathrm{BIC} = χ^2 + k \\ln n` is kept.  The aged lamp is exact
+the same way, with :math:`F_g(λ) = S_{a,g}(λ)/S_g(λ)` for group :math:`g`'s spectrum :math:`S_g`.  With the lamp output fitted, an overall factor on :math:`T` is the output
 scale: the basis function nearest 555 nm is held at 0 and the written filter is normalised to
 a maximum of 1.  Its uncertainty is
 :math:`σ_T(λ) = T(λ) \\sqrt{B(λ)^\\mathsf{T} Σ_b B(λ)}` from the fit's covariance.
@@ -70,9 +79,12 @@ __all__ = [
     "DiffuserPlateHypothesis",
     "AperturePlateHypothesis",
     "SmoothFilterHypothesis",
+    "LampAgeingHypothesis",
     "HYPOTHESES",
     "applicable_hypotheses",
     "filter_basis",
+    "filter_basis_sizes",
+    "fit_filter_by_evidence",
     "PLATE_GAP_MM",
     "MARGIN_MM",
     "FILTER_BASIS",
@@ -93,6 +105,10 @@ FILTER_BASIS = 12
 FITTED_FILTER_ID = "fitted_filter"
 #: bounds of the filter's log-transmittance coefficients (T from 0.02 to 7, relative)
 FILTER_COEFF_BOUNDS = (-4.0, 2.0)
+#: Levenberg–Marquardt iterations of one filter fit at most
+FILTER_LM_ITERATIONS = 60
+#: knots the filter's local refinement inserts at most
+FILTER_MAX_INSERTIONS = 24
 _WL = np.arange(360.0, 831.0)
 
 
@@ -157,6 +173,9 @@ class Hypothesis(ABC):
     effect: ClassVar[str]
     channel: ClassVar[Literal["spatial", "spectral"]]
     summary: ClassVar[str]
+    #: hardware the booth file lacks (tried only when the booth leaves something to explain);
+    #: False for a property of what the booth declares (a lamp's spectrum aged)
+    hardware: ClassVar[bool] = True
 
     @classmethod
     def applicable(cls, ir, lighting: str) -> str | None:
@@ -342,6 +361,18 @@ class AperturePlateHypothesis(PlateHypothesis):
         return out
 
 
+def filter_basis_on_knots(inner_nm) -> np.ndarray:
+    """Cubic B-spline basis (471, len(inner_nm) + 2) on the 1 nm grid with the given interior
+    knots (first and last: the ends of the measured range), held constant outside them."""
+    from scipy.interpolate import BSpline
+
+    deg = 3
+    inner = np.asarray(inner_nm, float)
+    t = np.concatenate([[inner[0]] * deg, inner, [inner[-1]] * deg])
+    x = np.clip(_WL, inner[0], inner[-1] - 1e-9)
+    return BSpline.design_matrix(x, t, deg).toarray()
+
+
 def filter_basis(k: int = FILTER_BASIS, lo_nm: float = 380.0, hi_nm: float = 780.0) -> np.ndarray:
     """Cubic B-spline basis (471, k) on the 1 nm grid, uniform knots over ``lo_nm``–``hi_nm``
     (the range the white tile was measured over) and held constant outside it; the functions
@@ -355,36 +386,103 @@ def filter_basis(k: int = FILTER_BASIS, lo_nm: float = 380.0, hi_nm: float = 780
     return BSpline.design_matrix(x, t, deg).toarray()
 
 
-class _FilteredProblem(FitProblem):
-    """The groups' spectra of a solved fit, times a fitted transmittance (no forward model)."""
+class _SpectralBase:
+    """What a spectral hypothesis needs from a solved fit, computed once and shared by every
+    spectral hypothesis tried on it: the groups' spectral irradiance at the readings and at the
+    tile (at unit output), their illuminance and V(λ)."""
 
-    def __init__(self, base: FitProblem, fit: FitResult, known: bool):
-        self._base = base
-        edges = base.ir.grid.edges_nm
-        used = np.nonzero(base.tile_mask)[0]
-        lo, hi = (float(edges[used[0]]), float(edges[used[-1] + 1])) if used.size else (380.0, 780.0)
-        self._range_nm = (max(lo, 380.0), min(hi, 780.0))
-        self._basis = filter_basis(FILTER_BASIS, *self._range_nm)
-        self._held = None if known else int(np.argmin(np.abs(
-            (self._basis * _WL[:, None]).sum(0) / self._basis.sum(0) - 555.0)))
-        coeffs = [FreeParameter(f"hypothesis.smooth_filter.b{k}", FILTER_COEFF_BOUNDS, 0.0)
-                  for k in range(self._basis.shape[1]) if k != self._held]
-        lin = [fp for fp in base.free if fp.linear]
-        # the base fit's nonlinear values become fixed: the filter is fitted on that fit
-        super().__init__(base.meas, fit.effects, lin + coeffs, base.noise_percent,
-                         base.spectral_noise_percent, {}, tolerance=base.tolerance)
-        x_nl = [fit.values[base.free[i].target] for i in base.nl]
-        fm, self._eff, self._lo = base.model(x_nl)
-        pred = fm.predict(base.P, base.N, base.meter)
+    def __init__(self, base: FitProblem, fit: FitResult):
         from lbscene.engine.light.forward import spectral_tables
 
-        V = spectral_tables(base.ir.grid)[0]
+        x_nl = [fit.values[base.free[i].target] for i in base.nl]
+        fm, self.eff, self.lo = base.model(x_nl)
+        pred = fm.predict(base.P, base.N, base.meter)
+        self.V = spectral_tables(base.ir.grid)[0]
         lux = pred.lux_by_group()
-        self._E = {g: pred.spectral_1nm({h: (1.0 if h == g else 0.0) for h in base.groups})
-                   for g in base.groups}
-        self._V = V
-        self._lux = {g: lux[g][: base.n_lux] for g in base.groups}
-        self._EV = {g: self._E[g][: base.n_lux] @ V for g in base.groups}
+        self.E = {g: pred.spectral_1nm({h: (1.0 if h == g else 0.0) for h in base.groups})
+                  for g in base.groups}
+        self.lux = {g: lux[g][: base.n_lux] for g in base.groups}
+        self.EV = {g: self.E[g][: base.n_lux] @ self.V for g in base.groups}
+        edges = base.tile_grid.edges_nm if base.tile_grid is not None else base.ir.grid.edges_nm
+        used = np.nonzero(base.tile_mask)[0] if base.tile_mask is not None else np.zeros(0, int)
+        lo, hi = (float(edges[used[0]]), float(edges[used[-1] + 1])) if used.size else (380.0, 780.0)
+        self.range_nm = (max(lo, 380.0), min(hi, 780.0))
+        #: the finest structure the tile data resolve: the width of the bands it is compared in
+        self.resolution_nm = float(base.tile_grid.width_nm) if base.tile_grid is not None else 20.0
+
+    @classmethod
+    def of(cls, base: FitProblem, fit: FitResult) -> "_SpectralBase":
+        sb = getattr(fit, "_spectral_base", None)
+        if sb is None or sb[0] is not base:
+            sb = (base, cls(base, fit))
+            fit._spectral_base = sb
+        return sb[1]
+
+
+class _ReshapedProblem(FitProblem):
+    """The groups' spectra of a solved fit, each times a fitted factor ``F_g(λ)`` (no forward
+    model): exact for anything that multiplies the light of every path by a function of
+    wavelength (a filter in front of the lamps, a lamp's own spectrum reshaped)."""
+
+    def __init__(self, base: FitProblem, fit: FitResult, free_nl: list[FreeParameter]):
+        self._base = base
+        sb = self._sb = _SpectralBase.of(base, fit)
+        self._range_nm = sb.range_nm
+        lin = [fp for fp in base.free if fp.linear]
+        # the base fit's nonlinear values become fixed: the factor is fitted on that fit
+        super().__init__(base.meas, fit.effects, lin + list(free_nl), base.noise_percent,
+                         base.spectral_noise_percent, {}, tolerance=base.tolerance)
+        self._eff, self._lo = sb.eff, sb.lo
+
+    def factors(self, values_nl) -> np.ndarray:
+        """``(G, 471)``: the factor on each group's spectrum."""
+        raise NotImplementedError
+
+    def components(self, values_nl):
+        key = tuple(float(v) for v in values_nl)
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        F = self.factors(values_nl)
+        b, sb = self._base, self._sb
+        A = None
+        if b.n_lux:
+            A = np.stack([sb.lux[g] * np.divide(sb.E[g][: b.n_lux] @ (F[k] * sb.V), sb.EV[g],
+                                                out=np.ones(b.n_lux), where=sb.EV[g] > 0)
+                          for k, g in enumerate(b.groups)])
+        T = T1 = None
+        if b.tile_row is not None:
+            refl = self.meas.tile.reflectance_1nm
+            T1 = np.stack([sb.E[g][b.tile_row] * F[k] * refl / np.pi for k, g in enumerate(b.groups)])
+            T = self.tile_grid.integrate(T1)
+        out = (A, T, T1, self._eff, self._lo)
+        self._last = (key, out)
+        self.nfev += 1
+        return out
+
+
+class _FilteredProblem(_ReshapedProblem):
+    """A transmittance :math:`T = \\exp(B b)` in front of every lamp on ``k`` B-splines."""
+
+    def __init__(self, base: FitProblem, fit: FitResult, known: bool, k: int = FILTER_BASIS,
+                 initial_log_1nm: np.ndarray | None = None, knots_nm=None):
+        sb = _SpectralBase.of(base, fit)
+        if knots_nm is None:
+            knots_nm = np.linspace(sb.range_nm[0], sb.range_nm[1], k - 3 + 1)
+        self.knots_nm = np.asarray(knots_nm, float)
+        self._basis = filter_basis_on_knots(self.knots_nm)
+        self._held = None if known else int(np.argmin(np.abs(
+            (self._basis * _WL[:, None]).sum(0) / self._basis.sum(0) - 555.0)))
+        b0 = np.zeros(self._basis.shape[1])
+        if initial_log_1nm is not None:
+            # start from a coarser solution, projected on this basis over the measured range
+            m = (_WL >= sb.range_nm[0]) & (_WL <= sb.range_nm[1])
+            b0 = np.linalg.lstsq(self._basis[m], initial_log_1nm[m], rcond=None)[0]
+            if self._held is not None:
+                b0 = b0 - b0[self._held]     # the basis sums to 1: a constant is the output scale
+            b0 = np.clip(b0, FILTER_COEFF_BOUNDS[0] + 1e-6, FILTER_COEFF_BOUNDS[1] - 1e-6)
+        coeffs = [FreeParameter(f"hypothesis.smooth_filter.b{j}", FILTER_COEFF_BOUNDS, float(b0[j]))
+                  for j in range(self._basis.shape[1]) if j != self._held]
+        super().__init__(base, fit, coeffs)
 
     def coefficients(self, values_nl) -> np.ndarray:
         b = list(values_nl)
@@ -395,26 +493,206 @@ class _FilteredProblem(FitProblem):
     def transmittance_1nm(self, values_nl) -> np.ndarray:
         return np.exp(self._basis @ self.coefficients(values_nl))
 
-    def components(self, values_nl):
-        key = tuple(float(v) for v in values_nl)
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
-        F = self.transmittance_1nm(values_nl)
-        b = self._base
-        A = None
+    def factors(self, values_nl) -> np.ndarray:
+        return np.broadcast_to(self.transmittance_1nm(values_nl), (len(self._base.groups), _WL.size))
+
+    def _jacobian(self, x, scales) -> np.ndarray:
+        """∂r/∂b at fixed output scales, exact: :math:`∂T/∂b_j = T B_j`, and the readings and
+        the tile bands are linear in :math:`T`."""
+        b, sb = self._base, self._sb
+        F = self.transmittance_1nm(x)
+        Bf = self._basis if self._held is None else np.delete(self._basis, self._held, axis=1)
+        FB = F[:, None] * Bf                                       # (471, K)
+        rows = []
         if b.n_lux:
-            A = np.stack([self._lux[g] * np.divide(self._E[g][: b.n_lux] @ (F * self._V), self._EV[g],
-                                                   out=np.ones(b.n_lux), where=self._EV[g] > 0)
-                          for g in b.groups])
-        T = T1 = None
-        if b.tile_row is not None:
+            y = self.meas.illuminance.lux
+            J = 0.0
+            for g in b.groups:
+                w = np.divide(sb.lux[g], sb.EV[g], out=np.zeros(b.n_lux), where=sb.EV[g] > 0)
+                J = J + scales[g] * (w[:, None] * (sb.E[g][: b.n_lux] @ (FB * sb.V[:, None])))
+            rows.append(J / (y * self.sigma_e)[:, None])
+        if b.tile_row is not None and self.tile_mask.any():
+            m = self.tile_mask
             refl = self.meas.tile.reflectance_1nm
-            T1 = np.stack([self._E[g][b.tile_row] * F * refl / np.pi for g in b.groups])
-            T = self.ir.grid.integrate(T1)
-        out = (A, T, T1, self._eff, self._lo)
-        self._last = (key, out)
-        self.nfev += 1
+            Mi = self.tile_grid.integration_matrix[m]
+            J = 0.0
+            for g in b.groups:
+                J = J + scales[g] * (Mi @ ((sb.E[g][b.tile_row] * refl / np.pi)[:, None] * FB))
+            rows.append(J / (self.tile_meas[m] * self.sigma_s)[:, None])
+        return np.concatenate(rows)
+
+    def solve(self) -> FitResult:
+        """Levenberg–Marquardt on the exact Jacobian (:meth:`_jacobian`, with the output scales'
+        columns), the output scales solved linearly after every step; no finite differences."""
+        lo = np.array([self.free[i].bounds[0] for i in self.nl], float)
+        hi = np.array([self.free[i].bounds[1] for i in self.nl], float)
+        x = np.clip(np.array([self.free[i].initial for i in self.nl], float), lo, hi)
+
+        def state(x):
+            A, T, *_ = self.components(x)
+            sc = self.scales_for(A, T)
+            r = self.residuals(x, sc)
+            return sc, r, float(r @ r)
+
+        sc, r, chi2 = state(x)
+        mu, ok, msg = 1e-3, True, "converged"
+        idx = [self.groups.index(g) for g in self.lin_groups]
+        nb = len(x)
+        for _ in range(FILTER_LM_ITERATIONS):
+            # the output scales move with the coefficients: their columns join the Jacobian
+            # (the step is taken jointly, the scales then solved again exactly)
+            A, T, *_ = self.components(x)
+            D, _t = self._design(A, T)
+            J = np.hstack([self._jacobian(x, sc), D[:, idx]])
+            H = J.T @ J
+            gvec = J.T @ r
+            improved = False
+            for _try in range(12):
+                Hd = H + mu * (np.diag(np.diag(H)) + 1e-9 * np.eye(len(H)))
+                try:
+                    step = np.linalg.solve(Hd, -gvec)[:nb]
+                except np.linalg.LinAlgError:
+                    mu *= 10.0
+                    continue
+                x2 = np.clip(x + step, lo, hi)
+                sc2, r2, chi2b = state(x2)
+                if chi2b < chi2:
+                    improved = True
+                    break
+                mu *= 10.0
+            if not improved:
+                break
+            done = chi2 - chi2b < 1e-6 * max(chi2, 1.0) + 1e-4
+            x, sc, r, chi2 = x2, sc2, r2, chi2b
+            mu = max(mu / 10.0, 1e-9)
+            if done:
+                break
+        else:
+            ok, msg = False, f"stopped after {FILTER_LM_ITERATIONS} iterations"
+        self.components(x)
+        self.solution = (x, sc, ok, msg)
+        return self._result(x, sc, ok, msg, fitted=True)
+
+    #: while the basis is searched, the standard errors (a finite-difference Jacobian over every
+    #: coefficient) are skipped; the chosen fit gets them (:meth:`with_errors`)
+    skip_errors = False
+
+    def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):
+        if self.skip_errors:
+            return {}, np.eye(len(self.free)), []
+        return super()._errors(x_nl, scales, chi2, noise_limited=noise_limited)
+
+    def with_errors(self) -> FitResult:
+        """The solved fit again, with its standard errors."""
+        self.skip_errors = False
+        x, sc, ok, msg = self.solution
+        return self._result(x, sc, ok, msg, fitted=True)
+
+
+def filter_basis_sizes(range_nm: tuple[float, float], resolution_nm: float) -> list[int]:
+    """The B-spline counts the filter's resolution is chosen among: :data:`FILTER_BASIS`
+    halved and doubled, down to a knot spacing of the data's resolution (the instrument's
+    sampling interval, or the bands the tile is compared in)."""
+    span = max(range_nm[1] - range_nm[0], 1.0)
+    k_max = int(span // max(resolution_nm, 1.0)) + 3
+    out = [k for k in (6, FILTER_BASIS, 2 * FILTER_BASIS, 4 * FILTER_BASIS, 8 * FILTER_BASIS) if k < k_max]
+    return out + [k_max]
+
+
+def fit_filter_by_evidence(problem: FitProblem, fit: FitResult, known: bool):
+    """The filter at the resolution the data choose, by BIC = χ² + k·ln n (n: every data value
+    of the fit, as the diagnosis scores).
+
+    First uniform knots, 6, 12, 24, … B-splines up to a spacing of the data's resolution, the
+    one of least BIC kept (stopping once the BIC has risen twice); then knots are inserted
+    where the tile's residual is largest — the midpoint of the worst knot interval, or of
+    its neighbours — while an insertion lowers the BIC and the interval is wider than twice the
+    data's resolution: a broad tint keeps a few coefficients, a narrow notch gets fine knots
+    around it only.  Returns ``(problem, result, BIC by number of B-splines tried)``.
+    """
+    sb = _SpectralBase.of(problem, fit)
+    logn = np.log(max(problem.n_residuals, 2))
+    tried: dict[int, float] = {}
+
+    def run(knots, init):
+        fp = _FilteredProblem(problem, fit, known, initial_log_1nm=init, knots_nm=knots)
+        fp.skip_errors = True
+        res = fp.solve()
+        bic = res.chi2 + len(fp.nl) * logn
+        k = fp._basis.shape[1]
+        tried[k] = min(bic, tried.get(k, np.inf))
+        return fp, res, bic
+
+    def log_t(fp, res):
+        return np.log(fp.transmittance_1nm([res.values[fp.free[i].target] for i in fp.nl]))
+
+    best, rises, prev, init = None, 0, None, None
+    for k in filter_basis_sizes(sb.range_nm, sb.resolution_nm):
+        fp, res, bic = run(np.linspace(sb.range_nm[0], sb.range_nm[1], k - 2), init)
+        if best is None or bic < best[2]:
+            best = (fp, res, bic)
+        rises = rises + 1 if prev is not None and bic >= prev else 0
+        if rises >= 2:
+            break
+        prev = bic
+        init = log_t(fp, res)
+    # local refinement where the residual is
+    for _round in range(FILTER_MAX_INSERTIONS):
+        fp, res, bic = best
+        knots = fp.knots_nm
+        r = res.spectral_residual_percent
+        if r is None:
+            break
+        c = problem.tile_grid.centres_nm
+        ok = np.isfinite(r)
+        interval = np.clip(np.searchsorted(knots, c[ok]) - 1, 0, len(knots) - 2)
+        bad = np.bincount(interval, weights=r[ok] ** 2, minlength=len(knots) - 1)
+        order = [int(i) for i in np.argsort(-bad)]
+        wide = [i for i in order if knots[i + 1] - knots[i] >= 2 * sb.resolution_nm][:2]
+        improved = None
+        for i in wide:
+            cand = np.sort(np.append(knots, 0.5 * (knots[i] + knots[i + 1])))
+            out = run(cand, log_t(fp, res))
+            if out[2] < bic and (improved is None or out[2] < improved[2]):
+                improved = out
+        if improved is None:
+            break
+        best = improved
+    return best[0], best[0].with_errors(), tried
+
+
+class _AgedProblem(_ReshapedProblem):
+    """Each lamp group's spectrum shifted and tilted at its declared luminous output
+    (:func:`~lbscene.engine.light.effects.builtin.lamp_spectrum_shift.aged_spectrum_1nm`):
+    the factor on group ``g`` is :math:`S_{a,g}(λ) / S_g(λ)` (the group's lamps summed)."""
+
+    def __init__(self, base: FitProblem, fit: FitResult):
+        from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import LampSpectrumShiftEffect
+
+        lamps = _lamps_on(base.ir, base.lighting)
+        self._S = np.stack([sum(np.asarray(lp.peak_intensity_1nm, float) for lp in lamps if lp.group == g)
+                            for g in base.groups])
+        fps = LampSpectrumShiftEffect.fit_parameters
+        init = LampSpectrumShiftEffect.fit_initial
+        free = [FreeParameter(f"effect.{LampAgeingHypothesis.effect}.{n}", tuple(b), float(init.get(n, 0.0)))
+                for n, b in fps.items()]
+        super().__init__(base, fit, free)
+
+    def factors(self, values_nl) -> np.ndarray:
+        from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import aged_spectrum_1nm
+
+        shift, tilt = (float(v) for v in values_nl)
+        out = np.ones_like(self._S)
+        for k, S in enumerate(self._S):
+            ok = S > 1e-9 * S.max() if S.max() > 0 else np.zeros(S.shape, bool)
+            out[k, ok] = aged_spectrum_1nm(S, shift, tilt)[ok] / S[ok]
         return out
+
+
+def _reshaped_result(fp: _ReshapedProblem, res: FitResult, fit: FitResult) -> FitResult:
+    # the parameters held from the fit it was added to keep their values
+    res.values = {**fit.values, **res.values}
+    return res
 
 
 class SmoothFilterHypothesis(Hypothesis):
@@ -433,8 +711,7 @@ class SmoothFilterHypothesis(Hypothesis):
     def fit_on(cls, problem, fit, known):
         if problem.tile_row is None:
             return None
-        fp = _FilteredProblem(problem, fit, known)
-        res = fp.solve()
+        fp, res, tried = fit_filter_by_evidence(problem, fit, known)
         x = [res.values[fp.free[i].target] for i in fp.nl]
         T = fp.transmittance_1nm(x)
         # σ of log T from the coefficients' covariance
@@ -443,8 +720,11 @@ class SmoothFilterHypothesis(Hypothesis):
         C = res.correlation[np.ix_(idx, idx)] * np.outer(se, se) if se.size else np.zeros((0, 0))
         B = fp._basis if fp._held is None else np.delete(fp._basis, fp._held, axis=1)
         sig = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0, None)) if se.size else np.zeros_like(T)
+        k = fp._basis.shape[1]
         res.hypothesis_data = {"transmittance_1nm": T, "log_sigma_1nm": sig, "known": known,
-                               "range_nm": fp._range_nm}
+                               "range_nm": fp._range_nm, "basis_size": k, "knots_nm": fp.knots_nm,
+                               "knot_spacing_nm": float(np.diff(fp.knots_nm).min()),
+                               "resolution_nm": fp._sb.resolution_nm, "bic_by_basis_size": tried}
         # the parameters held from the fit it was added to keep their values
         res.values = {**fit.values, **res.values}
         # the fitted filter as booth hardware: the booth of this explanation, for whoever
@@ -473,21 +753,60 @@ class SmoothFilterHypothesis(Hypothesis):
             note = (f" (peaks at {T.max():.3g} > 1: the lamps emit more than declared; "
                     "clipped to 1)")
             T = np.minimum(T, 1.0)
-        wl = np.arange(380, 781, 10)
+        # written as finely as the filter was resolved (the data's sampling for a narrow notch)
+        step = 10 if h.get("knot_spacing_nm", 40.0) >= 20.0 else max(1, int(round(h.get("resolution_nm", 5.0))))
+        wl = np.arange(380, 781, step)
         t = np.interp(wl, _WL, T)
         s = np.interp(wl, _WL, T * sig)
         lo, hi = h.get("range_nm", (380.0, 780.0))
+        res_note = (f"; {h['basis_size']} B-splines, knots {h['knot_spacing_nm']:.0f} nm apart at the "
+                    "finest (chosen by BIC)" if "basis_size" in h else "")
         return (f"filters:   # hypothesis: {cls.summary}; transmittance fitted to the white-tile "
-                f"spectrum{note}; measured {lo:.0f}–{hi:.0f} nm, held constant outside\n"
+                f"spectrum{note}; measured {lo:.0f}–{hi:.0f} nm, held constant outside{res_note}\n"
                 f"  {FITTED_FILTER_ID}:\n"
                 "    transmittance: {type: inline, wavelengths_nm: [" + ", ".join(str(int(w)) for w in wl) +
                 "],\n                    values: [" + ", ".join(f"{v:.3f}" for v in np.clip(t, 0, 1)) + "]}\n"
                 "    # standard uncertainty: [" + ", ".join(f"{v:.3f}" for v in s) + "]\n")
 
 
+class LampAgeingHypothesis(Hypothesis):
+    """The lamps' spectrum aged: shifted and tilted at the declared luminous output, both fitted
+    on the white tile.  Not hardware: tried whenever the booth does not enable the effect."""
+
+    id = "lamp_ageing"
+    effect = "lamp_spectrum_shift"
+    channel = "spectral"
+    summary = "the lamps' spectrum shifted and tilted (ageing) at the declared output"
+    hardware = False
+
+    @classmethod
+    def declared(cls, ir, lighting):
+        return None
+
+    @classmethod
+    def fit_on(cls, problem, fit, known):
+        if problem.tile_row is None:
+            return None
+        fp = _AgedProblem(problem, fit)
+        res = _reshaped_result(fp, fp.solve(), fit)
+        res.hypothesis_data = {"known": known}
+        res.effects = {**res.effects, cls.effect: cls.effect_entry(res)}
+        return res
+
+    @classmethod
+    def effect_entry(cls, fit):
+        return {n: float(fit.values[f"effect.{cls.effect}.{n}"]) for n in ("shift_nm", "tilt")
+                if f"effect.{cls.effect}.{n}" in fit.values}
+
+    @classmethod
+    def hardware_yaml(cls, ir, fit):
+        return ""
+
+
 #: hypothesis id → class
 HYPOTHESES: dict[str, type[Hypothesis]] = {
-    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, SmoothFilterHypothesis)}
+    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, SmoothFilterHypothesis,
+                      LampAgeingHypothesis)}
 
 
 def applicable_hypotheses(ir, lighting: str) -> tuple[list[type[Hypothesis]], dict[str, str]]:

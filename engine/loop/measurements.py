@@ -79,6 +79,10 @@ class TileData:
     covered: np.ndarray            # (471,) bool, where the instrument measured
     reflectance_1nm: np.ndarray
     display: str
+    #: the instrument's sampling interval (median spacing of the tabulated wavelengths) and its
+    #: first sample; None for a spectrum given as a formula
+    sampling_nm: float | None = None
+    first_sample_nm: float | None = None
 
 
 @dataclass
@@ -271,6 +275,32 @@ def read_illuminance_csv(path: Path, display: str, *, default_z_mm: float = 0.0,
     return data, diags
 
 
+def _tile_sampling_nm(spec, resolve) -> tuple[float | None, float | None]:
+    """Median spacing of a tabulated tile spectrum's wavelengths and its first wavelength
+    (None, None: not tabulated)."""
+    wl = None
+    if spec.type == "inline":
+        wl = list(spec.wavelengths_nm)
+    elif spec.type == "csv":
+        from lbscene.engine.files.load import display_path
+        from lbscene.engine.files.yamlio import csv_rows, read_text_bounded
+
+        shown = display_path(resolve(spec.path))
+        text = read_text_bounded(resolve(spec.path), shown, 16 * 1024 * 1024)
+        rows = [r for _, r in csv_rows(text, shown) if r and not r[0].lstrip().startswith("#")]
+        try:
+            col = [c.strip() for c in rows[0]].index("wavelength_nm")
+            wl = [float(r[col]) for r in rows[1:]]
+        except (ValueError, IndexError):
+            return None, None
+    if not wl or len(wl) < 3:
+        return None, None
+    w = np.sort(np.asarray(wl, float))
+    d = np.diff(w)
+    d = d[d > 0]
+    return (float(np.median(d)), float(w[0])) if d.size else (None, None)
+
+
 def _tile_column(spec, resolve):
     """For a CSV radiance spec without `column:`, prefer a column named 'radiance'."""
     if spec.type != "csv" or spec.column is not None:
@@ -438,7 +468,8 @@ def load_measurements(path: Path | str, booth: Path | str | None = None,
                 pos = np.asarray(wt.position_mm if wt.position_mm is not None else ir.sample_position_mm,
                                  float)
                 n = np.asarray(wt.normal, float)
-                tile = TileData(pos, n / np.linalg.norm(n), rad, covered, refl, str(disp))
+                tile = TileData(pos, n / np.linalg.norm(n), rad, covered, refl, str(disp),
+                                *_tile_sampling_nm(spec, doc.resolve))
     bag.raise_if_errors()
     known = list(dict.fromkeys(list(ir.fit.get("known_output_groups") or []) + list(m.known_output_groups)))
     return Measurements(path=path, name=m.name, booth_file=booth_file, lighting=m.lighting, ir=ir,

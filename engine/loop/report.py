@@ -81,9 +81,9 @@ def _spectrum(res):
     a1.set_ylabel("radiance (W·sr⁻¹·m⁻²·nm⁻¹)")
     a1.legend(fontsize=8)
     a1.set_title("white tile", fontsize=10)
-    g = res.meas.ir.grid
+    c = f.tile_centres_nm if f.tile_centres_nm is not None else res.meas.ir.grid.centres_nm
     r = f.spectral_residual_percent
-    a2.bar(g.centres_nm, np.nan_to_num(r), width=g.width_nm * 0.8, color="#1f5fa8")
+    a2.bar(c, np.nan_to_num(r), width=(c[1] - c[0] if len(c) > 1 else 20.0) * 0.8, color="#1f5fa8")
     a2.axhline(0, color="0.3", lw=0.8)
     a2.set_ylabel("band residual (%)")
     a2.set_xlabel("wavelength (nm)")
@@ -147,7 +147,7 @@ def _render_report(res) -> str:
              f"<b>{e(res.meas.lighting)}</b> · effects: {e(', '.join(sorted(res.fit.effects)) or 'none')}</p>"]
     verdict = res.verdict
     kind = getattr(verdict, "kind", "none")
-    cls = "ok" if kind == "none" else ("warn" if kind == "ambiguous" else "bad")
+    cls = "ok" if kind == "none" else ("warn" if kind in ("ambiguous", "unstable") else "bad")
     parts.append(f"<div class='verdict {cls}'>verdict: <b>{e(verdict)}</b>"
                  + (f" <small>({e(res.outlier_note)})</small>" if res.outlier_note else "") + "</div>")
     c = d.confidence if d is not None else None

@@ -109,9 +109,13 @@ def synthesize(booth, out_dir, *, lighting: str, truth_effects: dict, points=Non
     for f in files:
         y.append(f"  - path: {f}")
     if white_tile:
-        wl = np.arange(380.0, 781.0, 5.0)
+        from lbscene.engine.spectra.bands import BandGrid
+
+        # a spectroradiometer's output: 5 nm samples, each the mean over its 5 nm bandpass
+        bins = BandGrid(first_centre_nm=380.0, width_nm=5.0, count=81)
+        wl = bins.centres_nm
         L = eng.white_tile_radiance_1nm(None, (0, 0, 1.0), 0.99)
-        L5 = np.interp(wl, np.arange(360.0, 831.0), L)
+        L5 = bins.integrate(L)
         L5 = L5 * (1.0 + tile_noise_percent / 100.0 * rng.standard_normal(L5.shape))
         (out / f"{stem}-tile.csv").write_text(
             "wavelength_nm,radiance\n" + "\n".join(f"{a:g},{b:.6g}" for a, b in zip(wl, L5)) + "\n")

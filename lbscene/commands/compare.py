@@ -108,7 +108,7 @@ def print_text(res, console) -> None:
             t.add_row(f"{o['file']}:{o['line']}", f"{o['x_mm']:g}", f"{o['y_mm']:g}", f"{o['z_mm']:g}",
                       f"{o['measured_lx']:.1f}", f"{o['model_lx']:.1f}", f"{o['deviation_percent']:+.1f}")
         console.print(t)
-    style = {"none": "green", "ambiguous": "yellow"}.get(d.verdict.kind, "red")
+    style = {"none": "green", "ambiguous": "yellow", "unstable": "yellow"}.get(d.verdict.kind, "red")
     console.print(styled("verdict: ", (str(d.verdict), f"bold {style}"),
                          f"  ({res.outlier_note})" if res.outlier_note else ""))
     c = d.confidence
@@ -119,7 +119,9 @@ def print_text(res, console) -> None:
         if c.delta_bic_vs_next is not None and d.verdict.kind != "none":
             bits.append(f"{c.delta_bic_vs_next:.1f} over the next explanation")
         if c.recurrence is not None:
-            bits.append(f"the same verdict in {100 * c.recurrence:.0f} % of {c.samples} noise resamples")
+            same = (f"{d.verdict.point} in" if d.verdict.kind == "unstable" and d.verdict.point is not None
+                    else "the same verdict in")
+            bits.append(f"{same} {100 * c.recurrence:.0f} % of {c.samples} noise resamples")
         if bits:
             console.print("confidence: " + "; ".join(bits))
     for x in d.explanation:

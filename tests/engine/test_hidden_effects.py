@@ -141,7 +141,14 @@ def test_control_without_a_hidden_effect_says_none(booth, tmp_path, known):
 def test_hidden_effect_is_named_and_the_booth_edit_fixes_it(booth, tmp_path, truth, known):
     m = measure(booth, tmp_path / "m", truth, known=known)
     res = run_compare(m)
-    assert res.verdict == f"missing:{truth}", [(s.effect, round(s.score, 1)) for s in res.diagnosis.suspects]
+    v = res.verdict
+    if v.kind == "unstable":
+        # the lead over a rival is within the noise (an aperture's level drop against an end
+        # fall-off, output known): the data name the truth, and most resamples name it too
+        assert v.point == f"missing:{truth}", str(v)
+        assert sum(share for r, share in v.rivals if truth in r) > 0.5, str(v)
+        return
+    assert v == f"missing:{truth}", [(s.effect, round(s.score, 1)) for s in res.diagnosis.suspects]
     assert res.fit.rmse_percent > AFTER_FACTOR * NOISE_PERCENT or res.diagnosis.suspects[0].score > 10
     assert_fixed_by_snippet(booth, m, res.diagnosis, truth)
 
