@@ -73,7 +73,7 @@ from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_conv
 
 __all__ = ["RadiosityTransport", "radiosity_transport", "patch_form_factors", "interior_patches",
            "occluder_patches", "transport_bodies", "transport_occluders",
-           "mesh_patch_size_mm", "BOX_ROLES"]
+           "mesh_patch_size_mm", "BOX_ROLES", "WALL_ROLES", "surface_patch_scales"]
 
 #: IR surface roles of the booth's box (and platform): a convex set, no visibility needed
 BOX_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall", "platform")
@@ -506,6 +506,19 @@ def _half_diagonals(polys: np.ndarray) -> np.ndarray:
     return np.linalg.norm(polys - c[:, None, :], axis=2).max(axis=1)
 
 
+#: IR surface roles a ``surface_reflectance`` effect's ``walls_scale`` acts on
+WALL_ROLES = ("left_wall", "right_wall", "rear_wall", "front_wall")
+
+
+def surface_patch_scales(ir, p, surfaces) -> np.ndarray:
+    """Reflectance multiplier per patch (``surfaces``: the patches' surface ids) from the
+    ``surface_reflectance`` effect's parameters ``p``: ``ceiling_scale``, ``walls_scale`` (the
+    roles of :data:`WALL_ROLES`), ``floor_scale``; 1 for meshes, occluders and the platform."""
+    role = {s.id: s.role for s in ir.surfaces}
+    by_role = {"ceiling": p.ceiling_scale, "floor": p.floor_scale, **{w: p.walls_scale for w in WALL_ROLES}}
+    return np.array([by_role.get(role.get(str(s).split(":")[0]), 1.0) for s in surfaces], float)
+
+
 def radiosity_transport(ctx, p, model) -> "RadiosityTransport":
     return RadiosityTransport(ctx, p, model)
 
@@ -552,11 +565,16 @@ class RadiosityTransport:
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
-        rk = key + ("rho", p.reflectance_scale)
+        # a surface_reflectance effect scales the ceiling's, walls' or floor's reflectance
+        sr = ctx.params("surface_reflectance") if "surface_reflectance" in ctx.effects else None
+        rk = key + ("rho", p.reflectance_scale) + (
+            () if sr is None else (sr.ceiling_scale, sr.walls_scale, sr.floor_scale))
         if rk not in ctx.cache:
             mats = ir.materials
             rho = np.array([mats[m].reflectance.array_bands for m in self.patches.material]).reshape(
                 len(self.patches), -1)
+            if sr is not None:
+                rho = rho * surface_patch_scales(ir, sr, self.patches.surface)[:, None]
             ctx.cache[rk] = np.clip(rho * p.reflectance_scale, 0.0, 0.99)          # (P, B)
         self.rho = ctx.cache[rk]
         self._rho_key = rk

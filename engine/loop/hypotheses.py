@@ -22,6 +22,12 @@ hypothesis          effect it turns on   channel   what is fitted
                                                    lamp, black panels from it to the ceiling, and
                                                    a rectangular opening around the lamps'
                                                    footprint: the opening's two extents
+``mirror``          ``reflector``        spatial   a plane mirror above every lamp that is on,
+                                                   facing down: its distance from the lamp axis
+                                                   (profiled) and its reflectance
+``ceiling_reflectance`` ``surface_reflectance`` spatial  the ceiling's reflectance, profiled
+``walls_reflectance``   ``surface_reflectance`` spatial  the side and rear walls' reflectance,
+                                                   profiled
 ``smooth_filter``   ``spectral_filter``  spectral  a transmittance in front of every lamp,
                                                    :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)` on
                                                    :data:`FILTER_BASIS` cubic B-splines over
@@ -48,6 +54,37 @@ a maximum of 1.  Its uncertainty is
 Where a hypothesis puts its hardware is a guess; what it fits is what the readings can tell.
 The written YAML says which is which.
 
+Profiled properties
+-------------------
+Some properties change the booth itself, not a parameter of an effect: a plate's height, a
+cavity's interior reflectance, a mirror's distance, a surface's reflectance.  A hypothesis lists
+them as :class:`GeometryParameter` s and :func:`profile_geometry` fits them by profiling: the
+whole refit (every free parameter of the booth and of the hypothesis) is repeated on booths
+with the property at the values of a coarse grid, one property after the other, and a parabola
+through the three best values of the refit's :math:`χ^2` gives the estimate and its standard
+uncertainty,
+
+.. math::
+
+    χ^2(θ) \\approx a\\,(θ - \\hat θ)^2 + χ^2_\\text{min}, \\qquad
+    σ_θ = \\sqrt{\\frac{\\max(1, χ^2_\\text{min}/ν)}{a}} ,
+
+the profile likelihood's curvature (:math:`Δχ^2 = 1` at one standard uncertainty), inflated by
+the reduced :math:`χ^2` where the model leaves more than the noise; at an end of the grid (a
+black interior, say) it is one-sided, :math:`σ_θ = \\max(1, χ^2_\\text{min}/ν)\\,|Δθ/Δχ^2|` to
+the neighbouring value.  The uncertainty is conditional on the other profiled properties at
+their fitted values: where two properties trade off (a higher plate with a smaller opening
+casts nearly the same shadow) it understates the joint uncertainty.  A profile without curvature
+(:math:`a \\le 0`, or :math:`σ_θ` larger than the grid's span) means the readings cannot tell the
+property: the written YAML says so.  Each profiled property counts as one parameter in the
+diagnosis' BIC.
+
+The hardware is written as booth YAML sections to *merge* into the booth file
+(:func:`paste_hardware`): mappings (``materials:``, ``surfaces:``, ``reflectors:``) add or
+replace keys, lists of items with an ``id`` (``occluders:``, ``lamps:``) add items or update the
+item with that id, and ``effects:`` (the whole list, as the diagnosis suggests it) replaces the
+booth's.
+
 References
 ----------
 Kass, R. E., Raftery, A. E. (1995). Bayes factors. *Journal of the American Statistical
@@ -56,6 +93,7 @@ Association* 90 (430), 773–795 (the BIC scale the diagnosis scores hypotheses 
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
 from typing import ClassVar, Literal
@@ -70,6 +108,13 @@ __all__ = [
     "DiffuserPlateHypothesis",
     "AperturePlateHypothesis",
     "SmoothFilterHypothesis",
+    "MirrorHypothesis",
+    "SurfaceReflectanceHypothesis",
+    "CeilingReflectanceHypothesis",
+    "WallsReflectanceHypothesis",
+    "GeometryParameter",
+    "profile_geometry",
+    "paste_hardware",
     "HYPOTHESES",
     "applicable_hypotheses",
     "filter_basis",
@@ -94,6 +139,25 @@ FITTED_FILTER_ID = "fitted_filter"
 #: bounds of the filter's log-transmittance coefficients (T from 0.02 to 7, relative)
 FILTER_COEFF_BOUNDS = (-4.0, 2.0)
 _WL = np.arange(360.0, 831.0)
+#: an undeclared opening's extent across the tubes, profiled: these multiples of the lamps'
+#: footprint plus :data:`OPENING_MARGIN_MM`
+OPENING_SCALES = (0.8, 1.0, 1.25, 1.55, 1.9)
+#: sweeps over the profiled properties, one after the other (fewer when a sweep changes nothing)
+PROFILE_SWEEPS = 2
+#: gaps (mm) between the lamps' lowest point and a hypothesised plate, profiled
+PLATE_GAPS_MM = (5.0, 20.0, 45.0, 80.0, 130.0)
+#: the cavity's inside (the ceiling over its plate), profiled: these fractions of the declared
+#: ceiling reflectance
+INTERIOR_SCALES = (0.0, 0.5, 1.0)
+#: distances (mm) from the lamp axis to a hypothesised mirror above it, profiled
+MIRROR_DISTANCES_MM = (20.0, 35.0, 60.0, 100.0)
+#: reflectances of a surface hypothesised to differ from its declared material, profiled
+SURFACE_REFLECTANCES = (0.03, 0.15, 0.35, 0.6, 0.85)
+#: id of the fitted mirror, and of the fitted materials, in the written YAML
+FITTED_MIRROR_ID = "fitted_mirror"
+#: width of a hypothesised mirror across the lamp axis (a luminaire's reflector; not fitted)
+MIRROR_WIDTH_MM = 100.0
+CAVITY_MATERIAL_ID = "cavity_interior"
 
 
 def _lamps_on(ir, lighting):
@@ -143,6 +207,168 @@ def _g(x: float) -> str:
     return f"{x:.4g}"
 
 
+@dataclass(frozen=True)
+class GeometryParameter:
+    """A property of hypothesised hardware fitted by profiling (:func:`profile_geometry`).
+
+    ``name`` carries its unit (``gap_mm``); ``grid`` are the values tried (ascending),
+    ``initial`` the value :meth:`Hypothesis.augment` builds the booth with, ``bounds`` where an
+    interpolated optimum may lie."""
+
+    name: str
+    grid: tuple[float, ...]
+    initial: float
+    bounds: tuple[float, float]
+
+
+def _constant_material(ir, mid: str, value: float):
+    """A diffuse material ``mid`` of constant reflectance ``value``."""
+    from lbscene.engine.scene.ir import IRMaterial, IRSpectrum
+
+    return IRMaterial(id=mid, type="diffuse", reflectance=IRSpectrum.from_1nm(np.full(_WL.size, value), ir.grid))
+
+
+def _with_surface_material(ir, roles, mat):
+    """``ir`` with material ``mat`` added and given to the surfaces of ``roles``."""
+    surf = tuple(s.model_copy(update={"material": mat.id}) if s.role in roles else s for s in ir.surfaces)
+    return ir.model_copy(update={"materials": {**ir.materials, mat.id: mat}, "surfaces": surf})
+
+
+def _mean_reflectance(ir, roles) -> float | None:
+    """Mean (area-weighted) visible reflectance of the surfaces of ``roles``; None if none."""
+    w = [(s.area_mm2(), float(np.mean(ir.materials[s.material].reflectance.array_1nm[40:341])))
+         for s in ir.surfaces if s.role in roles]
+    if not w or sum(a for a, _ in w) <= 0:
+        return None
+    return sum(a * r for a, r in w) / sum(a for a, _ in w)
+
+
+def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
+    """Fit ``H``'s :class:`GeometryParameter` s by profiling the refit over them.
+
+    Parameters
+    ----------
+    H : type[Hypothesis]
+        The hypothesis; ``ir`` is the booth :meth:`Hypothesis.augment` built (its properties at
+        their ``initial`` values), ``fit`` and ``problem`` the refit on it.
+    solve_on : callable
+        ``solve_on(ir) -> (FitProblem, FitResult)``: the same refit on another booth.
+
+    Returns
+    -------
+    ir, fit, problem, n : the booth at the fitted values, its refit and problem, and the number
+        of profiled parameters.  The fit's ``values`` / ``stderr`` gain
+        ``hypothesis.<id>.<name>``; ``hypothesis_data["geometry"][<id>]`` maps each name to
+        ``(value, stderr or None)`` (None: the readings cannot tell it).
+    """
+    params = H.geometry(ir, lighting)
+    if not params:
+        return ir, fit, problem, 0
+    values = {p.name: float(p.initial) for p in params}
+    seen = {}
+
+    def key(v):
+        return tuple(round(float(v[p.name]), 6) for p in params)
+
+    seen[key(values)] = (ir, problem, fit)
+
+    def at(v):
+        k = key(v)
+        if k not in seen:
+            ir_v = H.regeometry(ir, lighting, v)
+            seen[k] = (ir_v, *solve_on(ir_v))
+        return seen[k]
+
+    sig: dict[str, float | None] = {}
+    for sweep in range(PROFILE_SWEEPS):
+        before = dict(values)
+        for p in params:
+            if sweep and len(params) == 1:
+                break
+            xs = np.array(sorted(set(p.grid) | {values[p.name]}), float)
+            chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
+            j = int(np.argmin(chi))
+            lo = max(0, min(j - 1, len(xs) - 3))
+            a, b, _ = np.polyfit(xs[lo:lo + 3], chi[lo:lo + 3], 2) if len(xs) >= 3 else (0.0, 0.0, 0.0)
+            best = float(xs[j])
+            if a > 0 and 0 < j < len(xs) - 1:
+                xv = float(np.clip(-b / (2 * a), *p.bounds))
+                if xs[j - 1] < xv < xs[j + 1] and abs(xv - best) > 1e-6 * (xs[-1] - xs[0]):
+                    if at({**values, p.name: xv})[2].chi2 < chi[j]:
+                        best = xv
+            values[p.name] = best
+            fb = at(values)[2]
+            infl = max(1.0, fb.chi2 / max(fb.dof, 1))
+            if a > 0 and 0 < j < len(xs) - 1:
+                s = math.sqrt(infl / a)
+            else:
+                # optimum at the grid's end: one-sided, from the rise to its neighbour
+                n = 1 if j == 0 else len(xs) - 2
+                rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
+                s = infl / rise if rise > 0 else None
+            sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
+        if values == before:
+            break
+    ir_b, prob_b, fit_b = at(values)
+    for n, v in values.items():
+        fit_b.values[f"hypothesis.{H.id}.{n}"] = v
+        if sig[n] is not None:
+            fit_b.stderr[f"hypothesis.{H.id}.{n}"] = sig[n]
+    hd = dict(getattr(fit_b, "hypothesis_data", None) or {})
+    hd["geometry"] = {**hd.get("geometry", {}), H.id: {n: (values[n], sig[n]) for n in values}}
+    fit_b.hypothesis_data = hd
+    return ir_b, fit_b, prob_b, len(params)
+
+
+def _geo(fit, hid: str, name: str, default: float) -> tuple[float, float | None]:
+    """A profiled value and its uncertainty from a fit (``default``, None when not profiled)."""
+    g = (getattr(fit, "hypothesis_data", None) or {}).get("geometry", {}).get(hid, {})
+    return g.get(name, (default, None))
+
+
+def _pm(value: float, se: float | None, unit: str = "") -> str:
+    """``# ± σ`` or ``# not pinned by the readings`` for a profiled value."""
+    if se is None:
+        return "   # not pinned by the readings (profile without curvature): measure it"
+    return f"   # ± {_g(se)}{unit} (profiled)"
+
+
+def paste_hardware(booth_text: str, snippet: str) -> str:
+    """The booth file with the diagnosis' snippet merged in.
+
+    Mappings add or replace keys, lists of items with an ``id`` add items or update the item
+    with that id, ``effects:`` and anything else replace the booth's.  Read and written
+    round-trip (ruamel.yaml): the booth file's comments and layout stay where they were."""
+    import io
+
+    from ruamel.yaml import YAML
+
+    y = YAML(typ="rt")
+    y.width = 110
+    booth = y.load(booth_text)
+    add = y.load(snippet) or {}
+    for k, v in add.items():
+        old = booth.get(k)
+        if k == "effects" or old is None:
+            booth[k] = v
+        elif isinstance(old, dict) and isinstance(v, dict):
+            for kk, vv in v.items():
+                old[kk] = vv
+        elif isinstance(old, list) and isinstance(v, list) and all(isinstance(x, dict) and "id" in x for x in v):
+            for item in v:
+                hit = next((x for x in old if isinstance(x, dict) and x.get("id") == item["id"]), None)
+                if hit is None:
+                    old.append(item)
+                else:
+                    for kk, vv in item.items():
+                        hit[kk] = vv
+        else:
+            booth[k] = v
+    out = io.StringIO()
+    y.dump(booth, out)
+    return out.getvalue()
+
+
 class Hypothesis(ABC):
     """Hardware the booth does not declare, as a candidate explanation.
 
@@ -187,6 +413,16 @@ class Hypothesis(ABC):
         raise NotImplementedError(f"hypothesis {cls.id!r} is refitted through augment")
 
     @classmethod
+    def geometry(cls, ir, lighting: str) -> list[GeometryParameter]:
+        """Properties fitted by profiling (:func:`profile_geometry`); [] for none."""
+        return []
+
+    @classmethod
+    def regeometry(cls, ir, lighting: str, values: dict[str, float]):
+        """The booth :meth:`augment` built (``ir``) with the profiled properties at ``values``."""
+        return ir
+
+    @classmethod
     def starts(cls) -> list[dict[str, float]]:
         """Starting values to try before the fit (free-parameter target → value); [] for one."""
         return []
@@ -198,12 +434,20 @@ class Hypothesis(ABC):
 
 
 class PlateHypothesis(Hypothesis):
-    """A plate :data:`PLATE_GAP_MM` below the lowest lamp that is on."""
+    """A plate below the lowest lamp that is on: :data:`PLATE_GAP_MM` at first, its gap to the
+    lamps profiled over :data:`PLATE_GAPS_MM`."""
 
     @classmethod
-    def plate_z_mm(cls, ir, lighting) -> float:
-        return min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting)) - PLATE_GAP_MM
+    def plate_z_mm(cls, ir, lighting, gap_mm: float = PLATE_GAP_MM) -> float:
+        return min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting)) - gap_mm
 
+    @classmethod
+    def geometry(cls, ir, lighting):
+        # the plate stays in the upper 60 % of the interior (above the readings)
+        top = min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting))
+        hi = max(PLATE_GAP_MM, top - 0.4 * float(ir.interior.height_mm))
+        grid = tuple(g for g in PLATE_GAPS_MM if g <= hi)
+        return [GeometryParameter("gap_mm", grid, PLATE_GAP_MM, (1.0, hi))] if len(grid) >= 3 else []
 
 class DiffuserPlateHypothesis(PlateHypothesis):
     id = "diffuser_plate"
@@ -233,14 +477,20 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         return ir.model_copy(update={"diffuser": d}), {"diffuser": {}}, free
 
     @classmethod
+    def regeometry(cls, ir, lighting, values):
+        d = ir.diffuser.model_copy(update={"z_mm": cls.plate_z_mm(ir, lighting, values["gap_mm"])})
+        return ir.model_copy(update={"diffuser": d})
+
+    @classmethod
     def hardware_yaml(cls, ir, fit):
         d = ir.diffuser
+        gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
         fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.5)
         se = fit.stderr.get("effect.diffuser.diffuse_fraction")
         t = fit.values.get("effect.diffuser.transmittance_scale")
-        lines = [f"diffuser:   # hypothesis: {cls.summary}; height and extent assumed, "
+        lines = [f"diffuser:   # hypothesis: {cls.summary}; extent assumed, height and "
                  "scattering fitted",
-                 f"  z_mm: {_g(d.z_mm)}", f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
+                 f"  z_mm: {_g(d.z_mm)}" + _pm(d.z_mm, gse, " mm"), f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
                  f"  centre_mm: [{_g(d.centre_mm[0])}, {_g(d.centre_mm[1])}]",
                  f"  thickness_mm: {_g(d.thickness_mm)}", f"  ior: {_g(d.ior)}"]
         if t is None:
@@ -278,18 +528,18 @@ class AperturePlateHypothesis(PlateHypothesis):
         return (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0 + 2 * m, y1 - y0 + 2 * m
 
     @classmethod
-    def augment(cls, ir, lighting, known_groups):
+    def _cavity(cls, ir, lighting, gap_mm: float):
+        """``ir`` with the cavity: the plate ``gap_mm`` under the lamps, black sides above it."""
         from lbscene.engine.scene.ir import IROccluder
 
         fx0, fx1, fy0, fy1 = _floor_bounds_mm(ir)
         cx, cy, ou, ov = cls.opening(ir, lighting)
         size = (fx1 - fx0, fy1 - fy0)
+        # the opening's centre follows the lamps: the plate is centred on them
         occ = IROccluder(id=cls.OCCLUDER_ID, type="aperture_plate",
-                         centre_mm=((fx0 + fx1) / 2, (fy0 + fy1) / 2, cls.plate_z_mm(ir, lighting)),
+                         centre_mm=(cx, cy, cls.plate_z_mm(ir, lighting, gap_mm)),
                          normal=(0.0, 0.0, -1.0), u_axis=(1.0, 0.0, 0.0), size_mm=size,
                          opening_mm=(min(ou, size[0]), min(ov, size[1])), lamps=None, material=None)
-        # the opening's centre follows the lamps: the plate is re-centred on them
-        occ = occ.model_copy(update={"centre_mm": (cx, cy, occ.centre_mm[2])})
         # a luminaire cavity is black inside: panels just inside the walls, plate to ceiling
         z0, z1 = occ.centre_mm[2], float(ir.interior.height_mm)
         zc, h = (z0 + z1) / 2, max(z1 - z0, 1.0)
@@ -304,12 +554,57 @@ class AperturePlateHypothesis(PlateHypothesis):
                 sides.append(IROccluder(id=f"{cls.OCCLUDER_ID}_{sid}", type="panel", centre_mm=c, normal=n,
                                         u_axis=u, size_mm=(w - 2 * eps, h), opening_mm=None, lamps=None,
                                         material=None))
-        hi_u = max(size[0] / occ.opening_mm[0], 1.05)
-        hi_v = max(size[1] / occ.opening_mm[1], 1.05)
-        free = [FreeParameter("effect.aperture_occlusion.opening_scale_u", (0.2, min(hi_u, 5.0)), 1.0),
-                FreeParameter("effect.aperture_occlusion.opening_scale_v", (0.2, min(hi_v, 5.0)), 1.0)]
-        return (ir.model_copy(update={"occluders": tuple(ir.occluders) + (occ, *sides)}),
-                {"aperture_occlusion": {}}, free)
+        mine = [o for o in ir.occluders if o.id != cls.OCCLUDER_ID and not o.id.startswith(cls.OCCLUDER_ID + "_")]
+        return ir.model_copy(update={"occluders": tuple(mine) + (occ, *sides)}), occ, size
+
+    @classmethod
+    def across(cls, ir, lighting) -> int:
+        """0 (u, along x) or 1 (v, along y): the opening's extent across the tubes.  A shadow
+        edge parallel to a tube moves the light a tube's points see in steps (no gradient for
+        the fit): that extent is profiled, the other is a fitted scale."""
+        ax = np.array([np.abs(np.asarray(lp.axis, float)) for lp in _lamps_on(ir, lighting) if lp.kind == "tube"])
+        return 0 if ax.size and ax[:, 1].sum() > ax[:, 0].sum() else 1
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        aug, occ, size = cls._cavity(ir, lighting, PLATE_GAP_MM)
+        a = 1 - cls.across(ir, lighting)
+        hi = max(size[a] / occ.opening_mm[a], 1.05)
+        return aug, {"aperture_occlusion": {}}, [
+            FreeParameter(f"effect.aperture_occlusion.opening_scale_{'uv'[a]}", (0.2, min(hi, 5.0)), 1.0)]
+
+    @classmethod
+    def geometry(cls, ir, lighting):
+        out = super().geometry(ir, lighting)
+        occ = next(o for o in ir.occluders if o.id == cls.OCCLUDER_ID)
+        c = cls.across(ir, lighting)
+        o0 = occ.opening_mm[c]
+        grid = tuple(o0 * s for s in OPENING_SCALES if o0 * s <= occ.size_mm[c])
+        if len(grid) >= 3:
+            out.insert(0, GeometryParameter(f"opening_{'uv'[c]}_mm", grid, o0, (grid[0], grid[-1])))
+        rho = _mean_reflectance(ir, ("ceiling",))
+        if rho is not None and rho > 0.01:
+            # the ceiling over the plate is the cavity's inside: its reflectance (first: it
+            # changes the level most)
+            out.insert(0, GeometryParameter("interior_reflectance", tuple(rho * s for s in INTERIOR_SCALES), rho,
+                                            (0.0, rho)))
+        return out
+
+    @classmethod
+    def regeometry(cls, ir, lighting, values):
+        out, occ, _ = cls._cavity(ir, lighting, values.get("gap_mm", PLATE_GAP_MM))
+        c = cls.across(ir, lighting)
+        key = f"opening_{'uv'[c]}_mm"
+        if key in values:
+            op = list(occ.opening_mm)
+            op[c] = values[key]
+            out = out.model_copy(update={"occluders": tuple(
+                o.model_copy(update={"opening_mm": tuple(op)}) if o.id == cls.OCCLUDER_ID else o
+                for o in out.occluders)})
+        if "interior_reflectance" in values:
+            out = _with_surface_material(out, ("ceiling",), _constant_material(
+                ir, CAVITY_MATERIAL_ID, values["interior_reflectance"]))
+        return out
 
     @classmethod
     def starts(cls):
@@ -323,16 +618,28 @@ class AperturePlateHypothesis(PlateHypothesis):
         sv = fit.values.get("effect.aperture_occlusion.opening_scale_v", 1.0)
         ou = min(o.opening_mm[0] * su, o.size_mm[0])
         ov = min(o.opening_mm[1] * sv, o.size_mm[1])
-        eu = fit.stderr.get("effect.aperture_occlusion.opening_scale_u")
-        ev = fit.stderr.get("effect.aperture_occlusion.opening_scale_v")
-        err = ""
-        if eu is not None and ev is not None:
-            err = f"   # ± [{_g(o.opening_mm[0] * eu)}, {_g(o.opening_mm[1] * ev)}] mm"
+        geo = (getattr(fit, "hypothesis_data", None) or {}).get("geometry", {}).get(cls.id, {})
+        errs = []
+        for k, name in enumerate("uv"):
+            se = fit.stderr.get(f"effect.aperture_occlusion.opening_scale_{name}")
+            se = o.opening_mm[k] * se if se is not None else geo.get(f"opening_{name}_mm", (0, None))[1]
+            errs.append("not pinned" if se is None else _g(se))
+        err = f"   # opening ± [{errs[0]}, {errs[1]}] mm"
         c = o.centre_mm
-        out = ("occluders:   # hypothesis: " + cls.summary + "; height assumed, opening fitted\n"
+        gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
+        out = ""
+        if "interior_reflectance" in geo:
+            val, val_se = geo["interior_reflectance"]
+            out += ("materials:   # hypothesis: the cavity's inside (the ceiling over the plate), "
+                    "reflectance fitted\n"
+                    f"  {CAVITY_MATERIAL_ID}: {{type: diffuse, reflectance: {{type: constant, value: {val:.3f}}}}}"
+                    + _pm(val, val_se) + "\nsurfaces:\n"
+                    f"  ceiling: {CAVITY_MATERIAL_ID}\n")
+        out += ("occluders:   # hypothesis: " + cls.summary + "; height and opening fitted\n"
                f"  - {{id: {o.id}, type: aperture_plate, centre_mm: [{_g(c[0])}, {_g(c[1])}, {_g(c[2])}], "
                f"normal: [0, 0, -1], size_mm: [{_g(o.size_mm[0])}, {_g(o.size_mm[1])}], "
-               f"opening_mm: [{_g(ou)}, {_g(ov)}]}}{err}\n")
+               f"opening_mm: [{_g(ou)}, {_g(ov)}]}}{err}\n"
+               f"    # plate height z {_g(c[2])} mm" + _pm(c[2], gse, " mm").replace("   #", ";", 1) + "\n")
         for p in ir.occluders:
             if p.id.startswith(cls.OCCLUDER_ID + "_"):
                 q, n, u = p.centre_mm, p.normal, p.u_axis
@@ -340,6 +647,144 @@ class AperturePlateHypothesis(PlateHypothesis):
                         f"normal: [{_g(n[0])}, {_g(n[1])}, {_g(n[2])}], u_axis: [{_g(u[0])}, {_g(u[1])}, "
                         f"{_g(u[2])}], size_mm: [{_g(p.size_mm[0])}, {_g(p.size_mm[1])}]}}   # black cavity side\n")
         return out
+
+
+class MirrorHypothesis(Hypothesis):
+    id = "mirror"
+    effect = "reflector"
+    channel = "spatial"
+    summary = "a mirror above the lamps, facing down"
+
+    @classmethod
+    def _lamps(cls, ir, lighting):
+        return [lp for lp in _lamps_on(ir, lighting) if lp.kind in ("tube", "bulb") and lp.mount == "booth"]
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        why = super().applicable(ir, lighting)
+        if why is None and not cls._lamps(ir, lighting):
+            why = "no tube or bulb is on"
+        return why
+
+    @classmethod
+    def declared(cls, ir, lighting):
+        if any(lp.reflector for lp in _lamps_on(ir, lighting)):
+            return "the lamps that are on have reflectors (the reflector effect tests them)"
+        return None
+
+    @classmethod
+    def _grid(cls, ir, lighting) -> tuple[float, ...]:
+        """Mirror distances that fit between every lamp's body and the ceiling."""
+        lamps = cls._lamps(ir, lighting)
+        room = min(float(ir.interior.height_mm) - float(lp.position_mm[2]) for lp in lamps) - 1.0
+        r = max(float(lp.radius_mm) for lp in lamps)
+        return tuple(d for d in MIRROR_DISTANCES_MM if r + 2.0 < d <= room)
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        from lbscene.engine.scene.ir import IRReflector, IRSpectrum
+
+        grid = cls._grid(ir, lighting)
+        d0 = grid[min(1, len(grid) - 1)] if grid else max(float(lp.radius_mm) for lp in cls._lamps(ir, lighting)) + 5
+        refl = IRReflector(id=FITTED_MIRROR_ID, type="plane", reflectance=IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid),
+                           distance_mm=d0, normal=(0.0, 0.0, -1.0), width_mm=MIRROR_WIDTH_MM)
+        ids = {lp.id for lp in cls._lamps(ir, lighting)}
+        lamps = tuple(lp.model_copy(update={"reflector": FITTED_MIRROR_ID}) if lp.id in ids else lp for lp in ir.lamps)
+        aug = ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: refl}, "lamps": lamps})
+        return aug, {"reflector": {}}, [FreeParameter("effect.reflector.reflectance_scale", (0.05, 1.0), 0.8)]
+
+    @classmethod
+    def geometry(cls, ir, lighting):
+        grid = cls._grid(ir, lighting)
+        if len(grid) < 3:
+            return []
+        return [GeometryParameter("distance_mm", grid, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
+                                  (grid[0], grid[-1]))]
+
+    @classmethod
+    def regeometry(cls, ir, lighting, values):
+        r = ir.reflectors[FITTED_MIRROR_ID].model_copy(update={"distance_mm": values["distance_mm"]})
+        return ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: r}})
+
+    @classmethod
+    def hardware_yaml(cls, ir, fit):
+        r = ir.reflectors[FITTED_MIRROR_ID]
+        rho = fit.values.get("effect.reflector.reflectance_scale", 0.8)
+        se = fit.stderr.get("effect.reflector.reflectance_scale")
+        d, dse = _geo(fit, cls.id, "distance_mm", r.distance_mm)
+        lamps = [lp.id for lp in ir.lamps if lp.reflector == FITTED_MIRROR_ID]
+        return (f"reflectors:   # hypothesis: {cls.summary}; width assumed, distance and reflectance fitted\n"
+                f"  {FITTED_MIRROR_ID}: {{type: plane, reflectance: {{type: constant, value: {rho:.3f}}}, "
+                f"distance_mm: {_g(r.distance_mm)}, normal: [0, 0, -1], width_mm: {_g(r.width_mm)}}}"
+                + (f"   # reflectance ± {_g(se)};" if se else "   #") + _pm(d, dse, " mm").replace("   #", " distance", 1)
+                + "\nlamps:   # the lamps that are on get the mirror (merged by id)\n"
+                + "".join(f"  - {{id: {i}, reflector: {FITTED_MIRROR_ID}}}\n" for i in lamps))
+
+
+class SurfaceReflectanceHypothesis(Hypothesis):
+    """A surface (``roles``) whose reflectance differs from its declared material's: the
+    ``surface_reflectance`` effect's scale on it is fitted (uncertainty from the Jacobian), and
+    the fitted material is written."""
+
+    effect = "surface_reflectance"
+    channel = "spatial"
+    roles: ClassVar[tuple[str, ...]]
+    param: ClassVar[str]
+    material_id: ClassVar[str]
+
+    @classmethod
+    def declared(cls, ir, lighting):
+        if "surface_reflectance" in ir.effects:
+            return "the booth declares surface_reflectance (its scales are that effect's to fit)"
+        if "interreflection" not in ir.effects:
+            return "inter-reflection is off: the model's surfaces reflect nothing"
+        rho = _mean_reflectance(ir, cls.roles)
+        if rho is None:
+            return f"the booth has no {' or '.join(cls.roles)}"
+        if rho < 0.02:
+            return f"the {' and '.join(cls.roles)} are declared black: a scale on them changes nothing"
+        return None
+
+    @classmethod
+    def _rho_max(cls, ir) -> float:
+        return max(float(ir.materials[s.material].reflectance.array_1nm.max())
+                   for s in ir.surfaces if s.role in cls.roles)
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        hi = max(1.05, min(3.0, 0.99 / max(cls._rho_max(ir), 1e-3)))
+        return ir, {"surface_reflectance": {}}, [
+            FreeParameter(f"effect.surface_reflectance.{cls.param}", (0.02, hi), 1.0)]
+
+    @classmethod
+    def hardware_yaml(cls, ir, fit):
+        s = fit.values.get(f"effect.surface_reflectance.{cls.param}", 1.0)
+        se = fit.stderr.get(f"effect.surface_reflectance.{cls.param}")
+        rho = _mean_reflectance(ir, cls.roles)
+        mats = {ir.materials[x.material].reflectance.values_1nm for x in ir.surfaces if x.role in cls.roles}
+        flat = all(np.ptp(np.asarray(m)[40:341]) < 1e-6 for m in mats)
+        note = "" if flat else " (the declared spectra's mean; their shape is not kept)"
+        present = [x.role for x in ir.surfaces if x.role in cls.roles]
+        return (f"materials:   # hypothesis: {cls.summary}; reflectance fitted{note}\n"
+                f"  {cls.material_id}: {{type: diffuse, reflectance: {{type: constant, value: {min(rho * s, 0.99):.3f}}}}}"
+                + (f"   # ± {_g(rho * se)}" if se else "   # not pinned by the readings") + "\nsurfaces:\n"
+                + "".join(f"  {r}: {cls.material_id}\n" for r in present))
+
+
+class CeilingReflectanceHypothesis(SurfaceReflectanceHypothesis):
+    id = "ceiling_reflectance"
+    summary = "the ceiling reflects otherwise than declared"
+    roles = ("ceiling",)
+    param = "ceiling_scale"
+    material_id = "fitted_ceiling"
+
+
+class WallsReflectanceHypothesis(SurfaceReflectanceHypothesis):
+    id = "walls_reflectance"
+    summary = "the side and rear walls reflect otherwise than declared"
+    roles = ("left_wall", "right_wall", "rear_wall", "front_wall")
+    param = "walls_scale"
+    material_id = "fitted_walls"
 
 
 def filter_basis(k: int = FILTER_BASIS, lo_nm: float = 380.0, hi_nm: float = 780.0) -> np.ndarray:
@@ -487,7 +932,8 @@ class SmoothFilterHypothesis(Hypothesis):
 
 #: hypothesis id → class
 HYPOTHESES: dict[str, type[Hypothesis]] = {
-    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, SmoothFilterHypothesis)}
+    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, MirrorHypothesis,
+                      CeilingReflectanceHypothesis, WallsReflectanceHypothesis, SmoothFilterHypothesis)}
 
 
 def applicable_hypotheses(ir, lighting: str) -> tuple[list[type[Hypothesis]], dict[str, str]]:
