@@ -12,11 +12,13 @@ YAML (hardware section plus its ``effects:`` entry) that validates and compiles.
 ==================  ===================  ========  =============================================
 hypothesis          effect it turns on   channel   what is fitted
 ==================  ===================  ========  =============================================
-``diffuser_plate``  ``diffuser``         spatial   a Lambertian-scattering plate
-                                                   :data:`PLATE_GAP_MM` below the lowest lamp,
-                                                   over the interior less :data:`MARGIN_MM`:
-                                                   its diffuse fraction, and its transmittance
-                                                   when the lamp output is declared known
+``diffuser_plate``  ``diffuser``         spatial   a plate below the lowest lamp, over the
+                                                   interior less :data:`MARGIN_MM`: its type
+                                                   (opal: a Lambertian part, its diffuse
+                                                   fraction fitted; or rough glass, its GGX
+                                                   roughness profiled), its height (profiled),
+                                                   and its transmittance when the lamp output
+                                                   is declared known
 ``aperture_plate``  ``aperture_occlusion``  spatial  a black luminaire cavity: a plate over the
                                                    interior :data:`PLATE_GAP_MM` below the lowest
                                                    lamp, black panels from it to the ceiling, and
@@ -142,6 +144,13 @@ _WL = np.arange(360.0, 831.0)
 #: an undeclared opening's extent across the tubes, profiled: these multiples of the lamps'
 #: footprint plus :data:`OPENING_MARGIN_MM`
 OPENING_SCALES = (0.8, 1.0, 1.25, 1.55, 1.9)
+#: GGX roughness of a hypothesised rough glass plate, profiled, and its refractive index
+PLATE_ROUGHNESSES = (0.05, 0.1, 0.2, 0.35, 0.5)
+ROUGH_PLATE_IOR = 1.5
+#: a rough plate's fitted Lambertian part below this is written as none
+ROUGH_DIFFUSE_MIN = 0.02
+#: Δχ² between opal and rough glass below which the plate's type is said not to be identified
+TYPE_DCHI2 = 10.0
 #: sweeps over the profiled properties, one after the other (fewer when a sweep changes nothing)
 PROFILE_SWEEPS = 2
 #: gaps (mm) between the lamps' lowest point and a hypothesised plate, profiled
@@ -219,6 +228,9 @@ class GeometryParameter:
     grid: tuple[float, ...]
     initial: float
     bounds: tuple[float, float]
+    #: a choice among the grid's values (no interpolation, no uncertainty: the χ² of each
+    #: choice is kept instead)
+    categorical: bool = False
 
 
 def _constant_material(ir, mid: str, value: float):
@@ -280,14 +292,23 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         return seen[k]
 
     sig: dict[str, float | None] = {}
+    choices: dict[str, dict[float, float]] = {}
     for sweep in range(PROFILE_SWEEPS):
         before = dict(values)
         for p in params:
             if sweep and len(params) == 1:
                 break
+            if not getattr(H, "profiled", lambda *_: True)(p.name, values):
+                sig.setdefault(p.name, None)
+                continue
             xs = np.array(sorted(set(p.grid) | {values[p.name]}), float)
             chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
             j = int(np.argmin(chi))
+            if p.categorical:
+                values[p.name] = float(xs[j])
+                sig[p.name] = None
+                choices[p.name] = {float(x): float(c) for x, c in zip(xs, chi)}
+                continue
             lo = max(0, min(j - 1, len(xs) - 3))
             a, b, _ = np.polyfit(xs[lo:lo + 3], chi[lo:lo + 3], 2) if len(xs) >= 3 else (0.0, 0.0, 0.0)
             best = float(xs[j])
@@ -316,6 +337,7 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
             fit_b.stderr[f"hypothesis.{H.id}.{n}"] = sig[n]
     hd = dict(getattr(fit_b, "hypothesis_data", None) or {})
     hd["geometry"] = {**hd.get("geometry", {}), H.id: {n: (values[n], sig[n]) for n in values}}
+    hd["choices"] = {**hd.get("choices", {}), H.id: choices}
     fit_b.hypothesis_data = hd
     return ir_b, fit_b, prob_b, len(params)
 
@@ -423,6 +445,12 @@ class Hypothesis(ABC):
         return ir
 
     @classmethod
+    def profiled(cls, name: str, values: dict[str, float]) -> bool:
+        """Whether property ``name`` matters at ``values`` (a rough plate's roughness does not
+        for an opal plate)."""
+        return True
+
+    @classmethod
     def starts(cls) -> list[dict[str, float]]:
         """Starting values to try before the fit (free-parameter target → value); [] for one."""
         return []
@@ -477,19 +505,50 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         return ir.model_copy(update={"diffuser": d}), {"diffuser": {}}, free
 
     @classmethod
+    def geometry(cls, ir, lighting):
+        out = super().geometry(ir, lighting)
+        # the plate's type: opal (Lambertian part, fitted fraction) or rough glass (GGX
+        # roughness, profiled); first, as it decides what the other properties mean
+        return [GeometryParameter("rough", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
+                GeometryParameter("roughness", PLATE_ROUGHNESSES, 0.2, (PLATE_ROUGHNESSES[0], PLATE_ROUGHNESSES[-1]))
+                ] + out
+
+    @classmethod
+    def profiled(cls, name, values):
+        return name != "roughness" or values.get("rough", 0.0) >= 0.5
+
+    @classmethod
     def regeometry(cls, ir, lighting, values):
-        d = ir.diffuser.model_copy(update={"z_mm": cls.plate_z_mm(ir, lighting, values["gap_mm"])})
-        return ir.model_copy(update={"diffuser": d})
+        upd = {"z_mm": cls.plate_z_mm(ir, lighting, values.get("gap_mm", PLATE_GAP_MM))}
+        if values.get("rough", 0.0) >= 0.5:
+            upd["scattering"] = {"type": "roughness", "roughness": float(values.get("roughness", 0.2))}
+            upd["ior"] = ROUGH_PLATE_IOR
+        return ir.model_copy(update={"diffuser": ir.diffuser.model_copy(update=upd)})
+
+    @classmethod
+    def effect_entry(cls, fit):
+        rough = _geo(fit, cls.id, "rough", 0.0)[0] >= 0.5
+        fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.0)
+        # a rough plate with a Lambertian part too: the effect's override carries it
+        return {"diffuse_fraction": round(float(fd), 4)} if rough and fd >= ROUGH_DIFFUSE_MIN else {}
 
     @classmethod
     def hardware_yaml(cls, ir, fit):
         d = ir.diffuser
         gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
+        rough = d.scattering.get("type") == "roughness"
         fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.5)
         se = fit.stderr.get("effect.diffuser.diffuse_fraction")
         t = fit.values.get("effect.diffuser.transmittance_scale")
-        lines = [f"diffuser:   # hypothesis: {cls.summary}; extent assumed, height and "
-                 "scattering fitted",
+        choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(cls.id, {}).get("rough")
+        kind = "rough glass" if rough else "opal"
+        why = ""
+        if choice and len(choice) == 2:
+            dchi = abs(choice[0.0] - choice[1.0])
+            why = (f"; {kind} fits better by Δχ² = {dchi:.3g}" if dchi >= TYPE_DCHI2
+                   else f"; opal and rough glass fit alike (Δχ² = {dchi:.2g}): the type is not identified")
+        lines = [f"diffuser:   # hypothesis: {cls.summary}, {kind}; extent assumed, height and "
+                 f"scattering fitted{why}",
                  f"  z_mm: {_g(d.z_mm)}" + _pm(d.z_mm, gse, " mm"), f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
                  f"  centre_mm: [{_g(d.centre_mm[0])}, {_g(d.centre_mm[1])}]",
                  f"  thickness_mm: {_g(d.thickness_mm)}", f"  ior: {_g(d.ior)}"]
@@ -500,8 +559,12 @@ class DiffuserPlateHypothesis(PlateHypothesis):
             st = fit.stderr.get("effect.diffuser.transmittance_scale")
             lines.append(f"  transmittance: {{type: constant, value: {_g(t)}}}" +
                          (f"   # ± {_g(st)}" if st else ""))
-        lines.append(f"  scattering: {{type: lambertian, diffuse_fraction: {_g(fd)}}}" +
-                     (f"   # ± {_g(se)}" if se else ""))
+        if rough:
+            r, rse = _geo(fit, cls.id, "roughness", float(d.scattering["roughness"]))
+            lines.append(f"  scattering: {{type: roughness, roughness: {_g(r)}}}" + _pm(r, rse))
+        else:
+            lines.append(f"  scattering: {{type: lambertian, diffuse_fraction: {_g(fd)}}}" +
+                         (f"   # ± {_g(se)}" if se else ""))
         return "\n".join(lines) + "\n"
 
 

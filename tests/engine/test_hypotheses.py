@@ -225,3 +225,29 @@ def test_surface_reflectance_scale_is_the_scaled_material(tmp_path):
     assert np.allclose(la, lb, rtol=2e-3)
     c = ForwardModel(ir, "L", effects=ir.effects).predict(P, N, np.ones(3, bool))
     assert (sum(c.lux_by_group().values()) > la * 1.01).all()
+
+
+def test_a_rough_plate_at_a_profiled_height_is_written_as_rough_glass(tmp_path):
+    from lbscene.engine.scene.compile import compile_booth
+
+    src = DATA / "validation" / "walls-05"
+    ir = compile_booth(src / "booth.yaml")
+    aug = DiffuserPlateHypothesis.augment(ir, "L", [])[0]
+    names = [g.name for g in DiffuserPlateHypothesis.geometry(aug, "L")]
+    assert names == ["rough", "roughness", "gap_mm"]
+    values = {"rough": 1.0, "roughness": 0.3, "gap_mm": 45.0}
+    rough = DiffuserPlateHypothesis.regeometry(aug, "L", values)
+    fit = _fake_fit({"effect.diffuser.diffuse_fraction": 0.0})
+    fit.hypothesis_data = {"geometry": {"diffuser_plate": {"rough": (1.0, None), "roughness": (0.3, 0.04),
+                                                           "gap_mm": (45.0, 3.0)}},
+                           "choices": {"diffuser_plate": {"rough": {0.0: 140.0, 1.0: 60.0}}}}
+    text = DiffuserPlateHypothesis.hardware_yaml(rough, fit)
+    assert "rough glass fits better by Δχ² = 80" in text and "# ± 0.04 (profiled)" in text
+    assert DiffuserPlateHypothesis.effect_entry(fit) == {}
+    booth = tmp_path / "b"
+    shutil.copytree(src, booth)
+    f = booth / "booth.yaml"
+    f.write_text(paste_hardware(f.read_text(), text + "effects:\n  interreflection: {}\n  diffuser: {}\n"))
+    d = compile_booth(f).diffuser
+    assert d.scattering == {"type": "roughness", "roughness": 0.3}
+    assert d.z_mm == pytest.approx(620 - 13 - 45)
