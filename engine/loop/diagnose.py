@@ -724,10 +724,11 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
                           tolerance=SCORING_TOLERANCE)
     fit = prob.solve()
     k = len(free)
-    for H in hw:
+    for H in hw if len(items) == 1 else ():
         if H.channel == "spatial" and H.geometry(cur_ir, b.lighting):
             # properties the forward model cannot vary (a plate's height, a mirror's distance):
-            # the refit repeated on booths with other values (hypotheses.profile_geometry)
+            # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
+            # pair the hardware keeps the hypothesis' first guess
             def solve_on(ir_v, fit0=fit, m=m, new_eff=new_eff, free=free):
                 fr = [replace(fp, initial=float(np.clip(fit0.values.get(fp.target, fp.initial), *fp.bounds)))
                       for fp in free]
