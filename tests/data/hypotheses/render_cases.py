@@ -33,6 +33,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 SCENES = ("cavity-wide", "ceiling-dark", "rough-plate")
 GRIDS = ("a3", "floor")
+#: grids rendered per scene (a rough plate's truth costs half an hour a grid on 2 cores: A3 only)
+SCENE_GRIDS = {"rough-plate": ("a3",)}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 #: the truth's noise (0.3 %) is well below the 1 % meter noise the tests add
@@ -61,7 +63,7 @@ def render_scene(scene: str, grids=GRIDS) -> None:
     meta = {"scene": scene, "renderer": "Mitsuba 3 (lbscene.engine.truth.mitsuba.MitsubaTruth)",
             "mitsuba_version": mitsuba_version(), "variant": VARIANT, "lighting": LIGHTING,
             "effects": ",".join(sorted(ir.effects)), "booth_sha256": booth_files_sha256(folder)}
-    for grid in grids:
+    for grid in (g for g in grids if g in SCENE_GRIDS.get(scene, GRIDS)):
         t0 = time.perf_counter()
         P = validation_grid(ir, grid)
         N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
@@ -79,7 +81,7 @@ def check_scene(scene: str, points: int) -> int:
     folder = HERE / scene
     bad = 0
     ir, truth = _truth(folder, CHECK_SEED)
-    for grid in GRIDS:
+    for grid in SCENE_GRIDS.get(scene, GRIDS):
         t = read_truth_csv(folder / f"truth-{grid}.csv")
         if t.meta.get("booth_sha256") != booth_files_sha256(folder):
             print(f"{scene}: booth edited since its truth was rendered", flush=True)
