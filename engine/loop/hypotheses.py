@@ -151,6 +151,10 @@ ROUGH_PLATE_IOR = 1.5
 ROUGH_DIFFUSE_MIN = 0.02
 #: Δχ² between opal and rough glass below which the plate's type is said not to be identified
 TYPE_DCHI2 = 10.0
+#: a jointly refitted inter-reflection scale this many standard uncertainties from 1 is written
+#: into the other surfaces' materials by a surface hypothesis
+JOINT_SCALE_SIGMAS = 2.0
+BOX_SURFACE_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall")
 #: sweeps over the profiled properties, one after the other (fewer when a sweep changes nothing)
 PROFILE_SWEEPS = 2
 #: gaps (mm) between the lamps' lowest point and a hypothesised plate, profiled
@@ -823,15 +827,30 @@ class SurfaceReflectanceHypothesis(Hypothesis):
     def hardware_yaml(cls, ir, fit):
         s = fit.values.get(f"effect.surface_reflectance.{cls.param}", 1.0)
         se = fit.stderr.get(f"effect.surface_reflectance.{cls.param}")
+        # the booth's own inter-reflection scale, refitted jointly, multiplies every surface
+        g = fit.values.get("effect.interreflection.reflectance_scale", 1.0)
+        gse = fit.stderr.get("effect.interreflection.reflectance_scale")
         rho = _mean_reflectance(ir, cls.roles)
         mats = {ir.materials[x.material].reflectance.values_1nm for x in ir.surfaces if x.role in cls.roles}
         flat = all(np.ptp(np.asarray(m)[40:341]) < 1e-6 for m in mats)
         note = "" if flat else " (the declared spectra's mean; their shape is not kept)"
         present = [x.role for x in ir.surfaces if x.role in cls.roles]
-        return (f"materials:   # hypothesis: {cls.summary}; reflectance fitted{note}\n"
-                f"  {cls.material_id}: {{type: diffuse, reflectance: {{type: constant, value: {min(rho * s, 0.99):.3f}}}}}"
-                + (f"   # ± {_g(rho * se)}" if se else "   # not pinned by the readings") + "\nsurfaces:\n"
-                + "".join(f"  {r}: {cls.material_id}\n" for r in present))
+        out = (f"materials:   # hypothesis: {cls.summary}; reflectance fitted{note}\n"
+               f"  {cls.material_id}: {{type: diffuse, reflectance: {{type: constant, value: {min(rho * s * g, 0.99):.3f}}}}}"
+               + (f"   # ± {_g(rho * g * se)}" if se else "   # not pinned by the readings") + "\n")
+        roles = {r: cls.material_id for r in present}
+        if gse and abs(g - 1.0) > JOINT_SCALE_SIGMAS * gse:
+            # the readings also scale the other surfaces: written, so that the booth predicts
+            # what the fit did
+            out += (f"  # the joint fit scales every surface's reflectance by {g:.3f} ± {_g(gse)} "
+                    "(inter-reflection's reflectance_scale): the other surfaces as fitted\n")
+            for x in ir.surfaces:
+                if x.role in BOX_SURFACE_ROLES and x.role not in cls.roles:
+                    r0 = float(np.mean(ir.materials[x.material].reflectance.array_1nm[40:341]))
+                    out += (f"  fitted_{x.role}: {{type: diffuse, reflectance: {{type: constant, "
+                            f"value: {min(r0 * g, 0.99):.3f}}}}}\n")
+                    roles[x.role] = f"fitted_{x.role}"
+        return out + "surfaces:\n" + "".join(f"  {r}: {m}\n" for r, m in roles.items())
 
 
 class CeilingReflectanceHypothesis(SurfaceReflectanceHypothesis):
