@@ -9,32 +9,36 @@ booth, where and as large as the lamps and the interior suggest, fits the proper
 can pin down together with the booth's own free parameters, and writes the result as booth
 YAML (hardware section plus its ``effects:`` entry) that validates and compiles.
 
-==================  ===================  ========  =============================================
-hypothesis          effect it turns on   channel   what is fitted
-==================  ===================  ========  =============================================
-``diffuser_plate``  ``diffuser``         spatial   a plate below the lowest lamp, over the
-                                                   interior less :data:`MARGIN_MM`: its type
-                                                   (opal: a Lambertian part, its diffuse
-                                                   fraction fitted; or rough glass, its GGX
-                                                   roughness profiled), its height (profiled),
-                                                   and its transmittance when the lamp output
-                                                   is declared known
-``aperture_plate``  ``aperture_occlusion``  spatial  a black luminaire cavity: a plate over the
-                                                   interior :data:`PLATE_GAP_MM` below the lowest
-                                                   lamp, black panels from it to the ceiling, and
-                                                   a rectangular opening around the lamps'
-                                                   footprint: the opening's two extents
-``mirror``          ``reflector``        spatial   a plane mirror above every lamp that is on,
-                                                   facing down: its distance from the lamp axis
-                                                   (profiled) and its reflectance
-``ceiling_reflectance`` ``surface_reflectance`` spatial  the ceiling's reflectance, profiled
-``walls_reflectance``   ``surface_reflectance`` spatial  the side and rear walls' reflectance,
-                                                   profiled
-``smooth_filter``   ``spectral_filter``  spectral  a transmittance in front of every lamp,
-                                                   :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)` on
-                                                   :data:`FILTER_BASIS` cubic B-splines over
-                                                   380–780 nm, with its uncertainty
-==================  ===================  ========  =============================================
+=======================  =========================  ========  ========================================
+hypothesis               effect it turns on         channel   what is fitted
+=======================  =========================  ========  ========================================
+``diffuser_plate``       ``diffuser``               spatial   a plate below the lowest lamp, over the
+                                                              interior less :data:`MARGIN_MM`: its
+                                                              type (opal: a Lambertian part, its
+                                                              diffuse fraction fitted; or rough
+                                                              glass, its GGX roughness profiled), its
+                                                              height (profiled), and its
+                                                              transmittance when the lamp output is
+                                                              declared known
+``aperture_plate``       ``aperture_occlusion``     spatial   a black luminaire cavity: a plate over
+                                                              the interior below the lowest lamp,
+                                                              black panels from it to the ceiling,
+                                                              and a rectangular opening around the
+                                                              lamps' footprint: the plate's height,
+                                                              the opening across the tubes and the
+                                                              ceiling's reflectance inside
+                                                              (profiled), the opening along them
+``mirror``               ``reflector``              spatial   a plane mirror above every lamp that is
+                                                              on, facing down: its distance from the
+                                                              lamp axis (profiled), its reflectance
+``ceiling_reflectance``  ``surface_reflectance``    spatial   the ceiling's reflectance
+``walls_reflectance``    ``surface_reflectance``    spatial   the side and rear walls' reflectance
+``smooth_filter``        ``spectral_filter``        spectral  a transmittance in front of every lamp,
+                                                              :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)`
+                                                              on :data:`FILTER_BASIS` cubic
+                                                              B-splines over 380–780 nm, with its
+                                                              uncertainty
+=======================  =========================  ========  ========================================
 
 The plate hypotheses are refitted like catalog effects (the forward model on the augmented
 booth, every free parameter of the booth refitted).  The filter is exact without a new
@@ -79,7 +83,7 @@ their fitted values: where two properties trade off (a higher plate with a small
 casts nearly the same shadow) it understates the joint uncertainty.  A profile without curvature
 (:math:`a \\le 0`, or :math:`σ_θ` larger than the grid's span) means the readings cannot tell the
 property: the written YAML says so.  Each profiled property counts as one parameter in the
-diagnosis' BIC.
+diagnosis' BIC when the readings pin it (a flat profile changes no prediction).
 
 The hardware is written as booth YAML sections to *merge* into the booth file
 (:func:`paste_hardware`): mappings (``materials:``, ``surfaces:``, ``reflectors:``) add or
@@ -273,7 +277,8 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
     Returns
     -------
     ir, fit, problem, n : the booth at the fitted values, its refit and problem, and the number
-        of profiled parameters.  The fit's ``values`` / ``stderr`` gain
+        of profiled parameters the readings pin (finite uncertainty; a choice whose χ² differ
+        by more than 1).  The fit's ``values`` / ``stderr`` gain
         ``hypothesis.<id>.<name>``; ``hypothesis_data["geometry"][<id>]`` maps each name to
         ``(value, stderr or None)`` (None: the readings cannot tell it).
     """
@@ -343,7 +348,12 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
     hd["geometry"] = {**hd.get("geometry", {}), H.id: {n: (values[n], sig[n]) for n in values}}
     hd["choices"] = {**hd.get("choices", {}), H.id: choices}
     fit_b.hypothesis_data = hd
-    return ir_b, fit_b, prob_b, len(params)
+    # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
+    # data cannot tell) changes no prediction and costs nothing
+    pinned = sum(1 for p in params if (sig.get(p.name) is not None) or (
+        p.categorical and len(choices.get(p.name, {})) > 1 and
+        max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
+    return ir_b, fit_b, prob_b, pinned
 
 
 def _geo(fit, hid: str, name: str, default: float) -> tuple[float, float | None]:
