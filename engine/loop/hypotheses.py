@@ -155,9 +155,9 @@ ROUGH_PLATE_IOR = 1.5
 ROUGH_DIFFUSE_MIN = 0.02
 #: Δχ² between opal and rough glass below which the plate's type is said not to be identified
 TYPE_DCHI2 = 10.0
-#: a jointly refitted inter-reflection scale this many standard uncertainties from 1 is written
-#: into the other surfaces' materials by a surface hypothesis
-JOINT_SCALE_SIGMAS = 2.0
+#: a jointly refitted inter-reflection scale farther than this from 1 is written into the other
+#: surfaces' materials by a surface hypothesis (the booth then predicts what the fit did)
+JOINT_SCALE_MIN = 0.005
 BOX_SURFACE_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall")
 #: sweeps over the profiled properties, one after the other (fewer when a sweep changes nothing)
 PROFILE_SWEEPS = 2
@@ -849,10 +849,11 @@ class SurfaceReflectanceHypothesis(Hypothesis):
                f"  {cls.material_id}: {{type: diffuse, reflectance: {{type: constant, value: {min(rho * s * g, 0.99):.3f}}}}}"
                + (f"   # ± {_g(rho * g * se)}" if se else "   # not pinned by the readings") + "\n")
         roles = {r: cls.material_id for r in present}
-        if gse and abs(g - 1.0) > JOINT_SCALE_SIGMAS * gse:
+        if abs(g - 1.0) > JOINT_SCALE_MIN:
             # the readings also scale the other surfaces: written, so that the booth predicts
             # what the fit did
-            out += (f"  # the joint fit scales every surface's reflectance by {g:.3f} ± {_g(gse)} "
+            out += (f"  # the joint fit scales every surface's reflectance by {g:.3f}"
+                    + (f" ± {_g(gse)}" if gse else "") + " "
                     "(inter-reflection's reflectance_scale): the other surfaces as fitted\n")
             for x in ir.surfaces:
                 if x.role in BOX_SURFACE_ROLES and x.role not in cls.roles:
