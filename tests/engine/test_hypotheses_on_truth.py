@@ -76,8 +76,10 @@ CASES = [
          ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
     Case("cavity-a3-known", "cavity-wide", "a3", _CAVITY, True, "aperture_occlusion",
          ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
+    # the opening's edge lies far beyond the A3 sheet: with the output fitted the sheet sees a
+    # level only (RMSE at the noise), and the fit takes it
     Case("cavity-a3-fitted", "cavity-wide", "a3", _CAVITY, False, "aperture_occlusion",
-         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
+         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion", "none"), slow=True),
     Case("ceiling-floor-known", "ceiling-dark", "floor", _CEILING, True, "surface_reflectance",
          ("missing:surface_reflectance", "ambiguous:surface_reflectance"), slow=True),
     Case("ceiling-a3-known", "ceiling-dark", "a3", _CEILING, True, "surface_reflectance",
