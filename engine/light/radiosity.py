@@ -73,7 +73,7 @@ from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_conv
 
 __all__ = ["RadiosityTransport", "radiosity_transport", "patch_form_factors", "interior_patches",
            "occluder_patches", "transport_bodies", "transport_occluders",
-           "mesh_patch_size_mm", "BOX_ROLES"]
+           "mesh_patch_size_mm", "BOX_ROLES", "WALL_ROLES", "surface_patch_scales"]
 
 #: IR surface roles of the booth's box (and platform): a convex set, no visibility needed
 BOX_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall", "platform")
@@ -556,6 +556,19 @@ def _half_diagonals(polys: np.ndarray) -> np.ndarray:
     return np.linalg.norm(polys - c[:, None, :], axis=2).max(axis=1)
 
 
+#: IR surface roles a ``surface_reflectance`` effect's ``walls_scale`` acts on
+WALL_ROLES = ("left_wall", "right_wall", "rear_wall", "front_wall")
+
+
+def surface_patch_scales(ir, p, surfaces) -> np.ndarray:
+    """Reflectance multiplier per patch (``surfaces``: the patches' surface ids) from the
+    ``surface_reflectance`` effect's parameters ``p``: ``ceiling_scale``, ``walls_scale`` (the
+    roles of :data:`WALL_ROLES`), ``floor_scale``; 1 for meshes, occluders and the platform."""
+    role = {s.id: s.role for s in ir.surfaces}
+    by_role = {"ceiling": p.ceiling_scale, "floor": p.floor_scale, **{w: p.walls_scale for w in WALL_ROLES}}
+    return np.array([by_role.get(role.get(str(s).split(":")[0]), 1.0) for s in surfaces], float)
+
+
 def radiosity_transport(ctx, p, model) -> "RadiosityTransport":
     return RadiosityTransport(ctx, p, model)
 
@@ -617,14 +630,20 @@ class RadiosityTransport:
 
             T_bands = ir.grid.integrate(diffuser_transmittance_1nm(ctx, ctx.params("diffuser")))
             plate_R = plate_hemispherical_reflectance(ir, T_bands)                      # (B,)
-        rk = key + ("rho", p.reflectance_scale, None if plate_R is None else tuple(np.round(plate_R, 9)))
+        # a surface_reflectance effect scales the ceiling's, walls' or floor's reflectance
+        sr = ctx.params("surface_reflectance") if "surface_reflectance" in ctx.effects else None
+        rk = key + ("rho", p.reflectance_scale, None if plate_R is None else tuple(np.round(plate_R, 9))) + (
+            () if sr is None else (sr.ceiling_scale, sr.walls_scale, sr.floor_scale))
         if rk not in ctx.cache:
             mats = ir.materials
+            is_plate = self.patches.material == PLATE_MATERIAL
             rho = np.array([plate_R if m == PLATE_MATERIAL else mats[m].reflectance.array_bands
                             for m in self.patches.material]).reshape(len(self.patches), -1)
             # the plate's reflectance is the plate model's, not a surface material's
-            scale = np.where(self.patches.material == PLATE_MATERIAL, 1.0, p.reflectance_scale)[:, None]
-            ctx.cache[rk] = np.clip(rho * scale, 0.0, 0.99)                            # (P, B)
+            scale = np.where(is_plate, 1.0, p.reflectance_scale)
+            if sr is not None:
+                scale = scale * np.where(is_plate, 1.0, surface_patch_scales(ir, sr, self.patches.surface))
+            ctx.cache[rk] = np.clip(rho * scale[:, None], 0.0, 0.99)                   # (P, B)
         self.rho = ctx.cache[rk]
         self._rho_key = rk
         # a diffuser plate between surfaces (the luminaire cavity above it, the booth below)

@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from .fit import FitProblem, FitResult, effect_parameter
-from .hypotheses import HYPOTHESES, applicable_hypotheses
+from .hypotheses import HYPOTHESES, applicable_hypotheses, profile_geometry
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
            "moran_i", "SIGNIFICANT", "TIE_MARGIN", "SCORING_TOLERANCE", "PINNED_FRACTION", "NoiseModel",
@@ -790,14 +790,31 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
         prob = FitProblem(m, new_eff, free, noise.percent, noise.spectral_percent, c,
                           tolerance=SCORING_TOLERANCE)
     fit = prob.solve()
+    k = len(free)
+    for H in hw if len(items) == 1 else ():
+        if H.channel == "spatial" and H.geometry(cur_ir, b.lighting):
+            # properties the forward model cannot vary (a plate's height, a mirror's distance):
+            # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
+            # pair the hardware keeps the hypothesis' first guess
+            def solve_on(ir_v, fit0=fit, m=m, new_eff=new_eff, free=free):
+                fr = [replace(fp, initial=float(np.clip(fit0.values.get(fp.target, fp.initial), *fp.bounds)))
+                      for fp in free]
+                c_v = {key: b.cache.setdefault(key, {}) for key in SHARED_GEOMETRY_STORES}
+                p_v = FitProblem(replace(m, ir=ir_v), new_eff, fr, noise.percent, noise.spectral_percent, c_v,
+                                 tolerance=SCORING_TOLERANCE)
+                return p_v, p_v.solve()
+            cur_ir, fit, prob, n_geo = profile_geometry(H, cur_ir, b.lighting, solve_on, fit, prob)
+            k += n_geo
+            n_params[HYPOTHESIS_PREFIX + H.id] = n_params.get(HYPOTHESIS_PREFIX + H.id, 0) + n_geo
     if cur_ir is not b.ir:
         fit.ir = cur_ir          # the booth this explanation predicts with (plan)
-    return _finish(b, items, prob, fit, free, post, hw, n_params, cur_ir)
+    return _finish(b, items, prob, fit, free, post, hw, n_params, cur_ir, k)
 
 
-def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir) -> Suspect | None:
-    """Fit the spectral hypotheses on top of ``fit`` and score the explanation."""
-    k = len(free)
+def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir, k: int | None = None) -> Suspect | None:
+    """Fit the spectral hypotheses on top of ``fit`` and score the explanation (``k``: the
+    parameters fitted so far, the free ones and the profiled geometry)."""
+    k = len(free) if k is None else k
     for it, H in post:
         f2 = H.fit_on(prob, fit, b.known_all)
         if f2 is None:

@@ -9,28 +9,41 @@ booth, where and as large as the lamps and the interior suggest, fits the proper
 can pin down together with the booth's own free parameters, and writes the result as booth
 YAML (hardware section plus its ``effects:`` entry) that validates and compiles.
 
-==================  ===================  ========  =============================================
-hypothesis          effect it turns on   channel   what is fitted
-==================  ===================  ========  =============================================
-``diffuser_plate``  ``diffuser``         spatial   a Lambertian-scattering plate
-                                                   :data:`PLATE_GAP_MM` below the lowest lamp,
-                                                   over the interior less :data:`MARGIN_MM`:
-                                                   its diffuse fraction, and its transmittance
-                                                   when the lamp output is declared known
-``aperture_plate``  ``aperture_occlusion``  spatial  a black luminaire cavity: a plate over the
-                                                   interior :data:`PLATE_GAP_MM` below the lowest
-                                                   lamp, black panels from it to the ceiling, and
-                                                   a rectangular opening around the lamps'
-                                                   footprint: the opening's two extents
-``smooth_filter``   ``spectral_filter``  spectral  a transmittance in front of every lamp,
-                                                   :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)` on
-                                                   cubic B-splines over the measured range, as
-                                                   many as the BIC chooses (knots down to the
-                                                   tile's sampling), with its uncertainty
-``lamp_ageing``     ``lamp_spectrum_     spectral  each lamp's spectrum shifted and tilted at
-                    shift``                        its declared luminous output: the shift and
-                                                   the tilt (not hardware: always tried)
-==================  ===================  ========  =============================================
+=======================  =========================  ========  ========================================
+hypothesis               effect it turns on         channel   what is fitted
+=======================  =========================  ========  ========================================
+``diffuser_plate``       ``diffuser``               spatial   a plate below the lowest lamp, over the
+                                                              interior less :data:`MARGIN_MM`: its
+                                                              type (opal: a Lambertian part, its
+                                                              diffuse fraction fitted; or rough
+                                                              glass, its GGX roughness profiled), its
+                                                              height (profiled), and its
+                                                              transmittance when the lamp output is
+                                                              declared known
+``aperture_plate``       ``aperture_occlusion``     spatial   a black luminaire cavity: a plate over
+                                                              the interior below the lowest lamp,
+                                                              black panels from it to the ceiling,
+                                                              and a rectangular opening around the
+                                                              lamps' footprint: the plate's height,
+                                                              the opening across the tubes and the
+                                                              ceiling's reflectance inside
+                                                              (profiled), the opening along them
+``mirror``               ``reflector``              spatial   a plane mirror above every lamp that is
+                                                              on, facing down: its distance from the
+                                                              lamp axis (profiled), its reflectance
+``ceiling_reflectance``  ``surface_reflectance``    spatial   the ceiling's reflectance
+``walls_reflectance``    ``surface_reflectance``    spatial   the side and rear walls' reflectance
+``smooth_filter``        ``spectral_filter``        spectral  a transmittance in front of every lamp,
+                                                              :math:`T(λ) = \\exp \\sum_k b_k B_k(λ)`
+                                                              on cubic B-splines over the measured
+                                                              range, as many as the BIC chooses (knots
+                                                              down to the tile's sampling), with its
+                                                              uncertainty
+``lamp_ageing``          ``lamp_spectrum_shift``    spectral  each lamp's spectrum shifted and tilted
+                                                              at its declared luminous output: the
+                                                              shift and the tilt (not hardware: always
+                                                              tried)
+=======================  =========================  ========  ========================================
 
 The plate hypotheses are refitted like catalog effects (the forward model on the augmented
 booth, every free parameter of the booth refitted).  The filter is exact without a new
@@ -57,6 +70,37 @@ a maximum of 1.  Its uncertainty is
 Where a hypothesis puts its hardware is a guess; what it fits is what the readings can tell.
 The written YAML says which is which.
 
+Profiled properties
+-------------------
+Some properties change the booth itself, not a parameter of an effect: a plate's height, a
+cavity's interior reflectance, a mirror's distance, a surface's reflectance.  A hypothesis lists
+them as :class:`GeometryParameter` s and :func:`profile_geometry` fits them by profiling: the
+whole refit (every free parameter of the booth and of the hypothesis) is repeated on booths
+with the property at the values of a coarse grid, one property after the other, and a parabola
+through the three best values of the refit's :math:`χ^2` gives the estimate and its standard
+uncertainty,
+
+.. math::
+
+    χ^2(θ) \\approx a\\,(θ - \\hat θ)^2 + χ^2_\\text{min}, \\qquad
+    σ_θ = \\sqrt{\\frac{\\max(1, χ^2_\\text{min}/ν)}{a}} ,
+
+the profile likelihood's curvature (:math:`Δχ^2 = 1` at one standard uncertainty), inflated by
+the reduced :math:`χ^2` where the model leaves more than the noise; at an end of the grid (a
+black interior, say) it is one-sided, :math:`σ_θ = \\max(1, χ^2_\\text{min}/ν)\\,|Δθ/Δχ^2|` to
+the neighbouring value.  The uncertainty is conditional on the other profiled properties at
+their fitted values: where two properties trade off (a higher plate with a smaller opening
+casts nearly the same shadow) it understates the joint uncertainty.  A profile without curvature
+(:math:`a \\le 0`, or :math:`σ_θ` larger than the grid's span) means the readings cannot tell the
+property: the written YAML says so.  Each profiled property counts as one parameter in the
+diagnosis' BIC when the readings pin it (a flat profile changes no prediction).
+
+The hardware is written as booth YAML sections to *merge* into the booth file
+(:func:`paste_hardware`): mappings (``materials:``, ``surfaces:``, ``reflectors:``) add or
+replace keys, lists of items with an ``id`` (``occluders:``, ``lamps:``) add items or update the
+item with that id, and ``effects:`` (the whole list, as the diagnosis suggests it) replaces the
+booth's.
+
 References
 ----------
 Kass, R. E., Raftery, A. E. (1995). Bayes factors. *Journal of the American Statistical
@@ -65,6 +109,7 @@ Association* 90 (430), 773–795 (the BIC scale the diagnosis scores hypotheses 
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
 from typing import ClassVar, Literal
@@ -80,6 +125,13 @@ __all__ = [
     "AperturePlateHypothesis",
     "SmoothFilterHypothesis",
     "LampAgeingHypothesis",
+    "MirrorHypothesis",
+    "SurfaceReflectanceHypothesis",
+    "CeilingReflectanceHypothesis",
+    "WallsReflectanceHypothesis",
+    "GeometryParameter",
+    "profile_geometry",
+    "paste_hardware",
     "HYPOTHESES",
     "applicable_hypotheses",
     "filter_basis",
@@ -110,6 +162,36 @@ FILTER_LM_ITERATIONS = 60
 #: knots the filter's local refinement inserts at most
 FILTER_MAX_INSERTIONS = 24
 _WL = np.arange(360.0, 831.0)
+#: an undeclared opening's extent across the tubes, profiled: these multiples of the lamps'
+#: footprint plus :data:`OPENING_MARGIN_MM`
+OPENING_SCALES = (0.8, 1.0, 1.25, 1.55, 1.9)
+#: GGX roughness of a hypothesised rough glass plate, profiled, and its refractive index
+PLATE_ROUGHNESSES = (0.05, 0.1, 0.2, 0.35, 0.5)
+ROUGH_PLATE_IOR = 1.5
+#: a rough plate's fitted Lambertian part below this is written as none
+ROUGH_DIFFUSE_MIN = 0.02
+#: Δχ² between opal and rough glass below which the plate's type is said not to be identified
+TYPE_DCHI2 = 10.0
+#: a jointly refitted inter-reflection scale farther than this from 1 is written into the other
+#: surfaces' materials by a surface hypothesis (the booth then predicts what the fit did)
+JOINT_SCALE_MIN = 0.005
+BOX_SURFACE_ROLES = ("floor", "ceiling", "left_wall", "right_wall", "rear_wall", "front_wall")
+#: sweeps over the profiled properties, one after the other (fewer when a sweep changes nothing)
+PROFILE_SWEEPS = 2
+#: gaps (mm) between the lamps' lowest point and a hypothesised plate, profiled
+PLATE_GAPS_MM = (5.0, 20.0, 45.0, 80.0, 130.0)
+#: the cavity's inside (the ceiling over its plate), profiled: these fractions of the declared
+#: ceiling reflectance
+INTERIOR_SCALES = (0.0, 0.5, 1.0)
+#: distances (mm) from the lamp axis to a hypothesised mirror above it, profiled
+MIRROR_DISTANCES_MM = (20.0, 35.0, 60.0, 100.0)
+#: reflectances of a surface hypothesised to differ from its declared material, profiled
+SURFACE_REFLECTANCES = (0.03, 0.15, 0.35, 0.6, 0.85)
+#: id of the fitted mirror, and of the fitted materials, in the written YAML
+FITTED_MIRROR_ID = "fitted_mirror"
+#: width of a hypothesised mirror across the lamp axis (a luminaire's reflector; not fitted)
+MIRROR_WIDTH_MM = 100.0
+CAVITY_MATERIAL_ID = "cavity_interior"
 
 
 def _lamps_on(ir, lighting):
@@ -159,6 +241,187 @@ def _g(x: float) -> str:
     return f"{x:.4g}"
 
 
+@dataclass(frozen=True)
+class GeometryParameter:
+    """A property of hypothesised hardware fitted by profiling (:func:`profile_geometry`).
+
+    ``name`` carries its unit (``gap_mm``); ``grid`` are the values tried (ascending),
+    ``initial`` the value :meth:`Hypothesis.augment` builds the booth with, ``bounds`` where an
+    interpolated optimum may lie."""
+
+    name: str
+    grid: tuple[float, ...]
+    initial: float
+    bounds: tuple[float, float]
+    #: a choice among the grid's values (no interpolation, no uncertainty: the χ² of each
+    #: choice is kept instead)
+    categorical: bool = False
+
+
+def _constant_material(ir, mid: str, value: float):
+    """A diffuse material ``mid`` of constant reflectance ``value``."""
+    from lbscene.engine.scene.ir import IRMaterial, IRSpectrum
+
+    return IRMaterial(id=mid, type="diffuse", reflectance=IRSpectrum.from_1nm(np.full(_WL.size, value), ir.grid))
+
+
+def _with_surface_material(ir, roles, mat):
+    """``ir`` with material ``mat`` added and given to the surfaces of ``roles``."""
+    surf = tuple(s.model_copy(update={"material": mat.id}) if s.role in roles else s for s in ir.surfaces)
+    return ir.model_copy(update={"materials": {**ir.materials, mat.id: mat}, "surfaces": surf})
+
+
+def _mean_reflectance(ir, roles) -> float | None:
+    """Mean (area-weighted) visible reflectance of the surfaces of ``roles``; None if none."""
+    w = [(s.area_mm2(), float(np.mean(ir.materials[s.material].reflectance.array_1nm[40:341])))
+         for s in ir.surfaces if s.role in roles]
+    if not w or sum(a for a, _ in w) <= 0:
+        return None
+    return sum(a * r for a, r in w) / sum(a for a, _ in w)
+
+
+def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
+    """Fit ``H``'s :class:`GeometryParameter` s by profiling the refit over them.
+
+    Parameters
+    ----------
+    H : type[Hypothesis]
+        The hypothesis; ``ir`` is the booth :meth:`Hypothesis.augment` built (its properties at
+        their ``initial`` values), ``fit`` and ``problem`` the refit on it.
+    solve_on : callable
+        ``solve_on(ir) -> (FitProblem, FitResult)``: the same refit on another booth.
+
+    Returns
+    -------
+    ir, fit, problem, n : the booth at the fitted values, its refit and problem, and the number
+        of profiled parameters the readings pin (finite uncertainty; a choice whose χ² differ
+        by more than 1).  The fit's ``values`` / ``stderr`` gain
+        ``hypothesis.<id>.<name>``; ``hypothesis_data["geometry"][<id>]`` maps each name to
+        ``(value, stderr or None)`` (None: the readings cannot tell it).
+    """
+    params = H.geometry(ir, lighting)
+    if not params:
+        return ir, fit, problem, 0
+    values = {p.name: float(p.initial) for p in params}
+    seen = {}
+
+    def key(v):
+        return tuple(round(float(v[p.name]), 6) for p in params)
+
+    seen[key(values)] = (ir, problem, fit)
+
+    def at(v):
+        k = key(v)
+        if k not in seen:
+            ir_v = H.regeometry(ir, lighting, v)
+            seen[k] = (ir_v, *solve_on(ir_v))
+        return seen[k]
+
+    sig: dict[str, float | None] = {}
+    choices: dict[str, dict[float, float]] = {}
+    for sweep in range(PROFILE_SWEEPS):
+        before = dict(values)
+        for p in params:
+            if sweep and len(params) == 1:
+                break
+            if not getattr(H, "profiled", lambda *_: True)(p.name, values):
+                sig.setdefault(p.name, None)
+                continue
+            xs = np.array(sorted(set(p.grid) | {values[p.name]}), float)
+            chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
+            j = int(np.argmin(chi))
+            if p.categorical:
+                values[p.name] = float(xs[j])
+                sig[p.name] = None
+                choices[p.name] = {float(x): float(c) for x, c in zip(xs, chi)}
+                continue
+            lo = max(0, min(j - 1, len(xs) - 3))
+            a, b, _ = np.polyfit(xs[lo:lo + 3], chi[lo:lo + 3], 2) if len(xs) >= 3 else (0.0, 0.0, 0.0)
+            best = float(xs[j])
+            if a > 0 and 0 < j < len(xs) - 1:
+                xv = float(np.clip(-b / (2 * a), *p.bounds))
+                if xs[j - 1] < xv < xs[j + 1] and abs(xv - best) > 1e-6 * (xs[-1] - xs[0]):
+                    if at({**values, p.name: xv})[2].chi2 < chi[j]:
+                        best = xv
+            values[p.name] = best
+            fb = at(values)[2]
+            infl = max(1.0, fb.chi2 / max(fb.dof, 1))
+            if a > 0 and 0 < j < len(xs) - 1:
+                s = math.sqrt(infl / a)
+            else:
+                # optimum at the grid's end: one-sided, from the rise to its neighbour
+                n = 1 if j == 0 else len(xs) - 2
+                rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
+                s = infl / rise if rise > 0 else None
+            sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
+        if values == before:
+            break
+    ir_b, prob_b, fit_b = at(values)
+    for n, v in values.items():
+        fit_b.values[f"hypothesis.{H.id}.{n}"] = v
+        if sig[n] is not None:
+            fit_b.stderr[f"hypothesis.{H.id}.{n}"] = sig[n]
+    hd = dict(getattr(fit_b, "hypothesis_data", None) or {})
+    hd["geometry"] = {**hd.get("geometry", {}), H.id: {n: (values[n], sig[n]) for n in values}}
+    hd["choices"] = {**hd.get("choices", {}), H.id: choices}
+    fit_b.hypothesis_data = hd
+    # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
+    # data cannot tell) changes no prediction and costs nothing
+    pinned = sum(1 for p in params if (sig.get(p.name) is not None) or (
+        p.categorical and len(choices.get(p.name, {})) > 1 and
+        max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
+    return ir_b, fit_b, prob_b, pinned
+
+
+def _geo(fit, hid: str, name: str, default: float) -> tuple[float, float | None]:
+    """A profiled value and its uncertainty from a fit (``default``, None when not profiled)."""
+    g = (getattr(fit, "hypothesis_data", None) or {}).get("geometry", {}).get(hid, {})
+    return g.get(name, (default, None))
+
+
+def _pm(value: float, se: float | None, unit: str = "") -> str:
+    """``# ± σ`` or ``# not pinned by the readings`` for a profiled value."""
+    if se is None:
+        return "   # not pinned by the readings (profile without curvature): measure it"
+    return f"   # ± {_g(se)}{unit} (profiled)"
+
+
+def paste_hardware(booth_text: str, snippet: str) -> str:
+    """The booth file with the diagnosis' snippet merged in.
+
+    Mappings add or replace keys, lists of items with an ``id`` add items or update the item
+    with that id, ``effects:`` and anything else replace the booth's.  Read and written
+    round-trip (ruamel.yaml): the booth file's comments and layout stay where they were."""
+    import io
+
+    from ruamel.yaml import YAML
+
+    y = YAML(typ="rt")
+    y.width = 110
+    booth = y.load(booth_text)
+    add = y.load(snippet) or {}
+    for k, v in add.items():
+        old = booth.get(k)
+        if k == "effects" or old is None:
+            booth[k] = v
+        elif isinstance(old, dict) and isinstance(v, dict):
+            for kk, vv in v.items():
+                old[kk] = vv
+        elif isinstance(old, list) and isinstance(v, list) and all(isinstance(x, dict) and "id" in x for x in v):
+            for item in v:
+                hit = next((x for x in old if isinstance(x, dict) and x.get("id") == item["id"]), None)
+                if hit is None:
+                    old.append(item)
+                else:
+                    for kk, vv in item.items():
+                        hit[kk] = vv
+        else:
+            booth[k] = v
+    out = io.StringIO()
+    y.dump(booth, out)
+    return out.getvalue()
+
+
 class Hypothesis(ABC):
     """Hardware the booth does not declare, as a candidate explanation.
 
@@ -206,6 +469,22 @@ class Hypothesis(ABC):
         raise NotImplementedError(f"hypothesis {cls.id!r} is refitted through augment")
 
     @classmethod
+    def geometry(cls, ir, lighting: str) -> list[GeometryParameter]:
+        """Properties fitted by profiling (:func:`profile_geometry`); [] for none."""
+        return []
+
+    @classmethod
+    def regeometry(cls, ir, lighting: str, values: dict[str, float]):
+        """The booth :meth:`augment` built (``ir``) with the profiled properties at ``values``."""
+        return ir
+
+    @classmethod
+    def profiled(cls, name: str, values: dict[str, float]) -> bool:
+        """Whether property ``name`` matters at ``values`` (a rough plate's roughness does not
+        for an opal plate)."""
+        return True
+
+    @classmethod
     def starts(cls) -> list[dict[str, float]]:
         """Starting values to try before the fit (free-parameter target → value); [] for one."""
         return []
@@ -217,12 +496,20 @@ class Hypothesis(ABC):
 
 
 class PlateHypothesis(Hypothesis):
-    """A plate :data:`PLATE_GAP_MM` below the lowest lamp that is on."""
+    """A plate below the lowest lamp that is on: :data:`PLATE_GAP_MM` at first, its gap to the
+    lamps profiled over :data:`PLATE_GAPS_MM`."""
 
     @classmethod
-    def plate_z_mm(cls, ir, lighting) -> float:
-        return min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting)) - PLATE_GAP_MM
+    def plate_z_mm(cls, ir, lighting, gap_mm: float = PLATE_GAP_MM) -> float:
+        return min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting)) - gap_mm
 
+    @classmethod
+    def geometry(cls, ir, lighting):
+        # the plate stays in the upper 60 % of the interior (above the readings)
+        top = min(_lamp_bottom_mm(lp) for lp in _lamps_on(ir, lighting))
+        hi = max(PLATE_GAP_MM, top - 0.4 * float(ir.interior.height_mm))
+        grid = tuple(g for g in PLATE_GAPS_MM if g <= hi)
+        return [GeometryParameter("gap_mm", grid, PLATE_GAP_MM, (1.0, hi))] if len(grid) >= 3 else []
 
 class DiffuserPlateHypothesis(PlateHypothesis):
     id = "diffuser_plate"
@@ -252,14 +539,51 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         return ir.model_copy(update={"diffuser": d}), {"diffuser": {}}, free
 
     @classmethod
+    def geometry(cls, ir, lighting):
+        out = super().geometry(ir, lighting)
+        # the plate's type: opal (Lambertian part, fitted fraction) or rough glass (GGX
+        # roughness, profiled); first, as it decides what the other properties mean
+        return [GeometryParameter("rough", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
+                GeometryParameter("roughness", PLATE_ROUGHNESSES, 0.2, (PLATE_ROUGHNESSES[0], PLATE_ROUGHNESSES[-1]))
+                ] + out
+
+    @classmethod
+    def profiled(cls, name, values):
+        return name != "roughness" or values.get("rough", 0.0) >= 0.5
+
+    @classmethod
+    def regeometry(cls, ir, lighting, values):
+        upd = {"z_mm": cls.plate_z_mm(ir, lighting, values.get("gap_mm", PLATE_GAP_MM))}
+        if values.get("rough", 0.0) >= 0.5:
+            upd["scattering"] = {"type": "roughness", "roughness": float(values.get("roughness", 0.2))}
+            upd["ior"] = ROUGH_PLATE_IOR
+        return ir.model_copy(update={"diffuser": ir.diffuser.model_copy(update=upd)})
+
+    @classmethod
+    def effect_entry(cls, fit):
+        rough = _geo(fit, cls.id, "rough", 0.0)[0] >= 0.5
+        fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.0)
+        # a rough plate with a Lambertian part too: the effect's override carries it
+        return {"diffuse_fraction": round(float(fd), 4)} if rough and fd >= ROUGH_DIFFUSE_MIN else {}
+
+    @classmethod
     def hardware_yaml(cls, ir, fit):
         d = ir.diffuser
+        gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
+        rough = d.scattering.get("type") == "roughness"
         fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.5)
         se = fit.stderr.get("effect.diffuser.diffuse_fraction")
         t = fit.values.get("effect.diffuser.transmittance_scale")
-        lines = [f"diffuser:   # hypothesis: {cls.summary}; height and extent assumed, "
-                 "scattering fitted",
-                 f"  z_mm: {_g(d.z_mm)}", f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
+        choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(cls.id, {}).get("rough")
+        kind = "rough glass" if rough else "opal"
+        why = ""
+        if choice and len(choice) == 2:
+            dchi = abs(choice[0.0] - choice[1.0])
+            why = (f"; {kind} fits better by Δχ² = {dchi:.3g}" if dchi >= TYPE_DCHI2
+                   else f"; opal and rough glass fit alike (Δχ² = {dchi:.2g}): the type is not identified")
+        lines = [f"diffuser:   # hypothesis: {cls.summary}, {kind}; extent assumed, height and "
+                 f"scattering fitted{why}",
+                 f"  z_mm: {_g(d.z_mm)}" + _pm(d.z_mm, gse, " mm"), f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
                  f"  centre_mm: [{_g(d.centre_mm[0])}, {_g(d.centre_mm[1])}]",
                  f"  thickness_mm: {_g(d.thickness_mm)}", f"  ior: {_g(d.ior)}"]
         if t is None:
@@ -269,8 +593,12 @@ class DiffuserPlateHypothesis(PlateHypothesis):
             st = fit.stderr.get("effect.diffuser.transmittance_scale")
             lines.append(f"  transmittance: {{type: constant, value: {_g(t)}}}" +
                          (f"   # ± {_g(st)}" if st else ""))
-        lines.append(f"  scattering: {{type: lambertian, diffuse_fraction: {_g(fd)}}}" +
-                     (f"   # ± {_g(se)}" if se else ""))
+        if rough:
+            r, rse = _geo(fit, cls.id, "roughness", float(d.scattering["roughness"]))
+            lines.append(f"  scattering: {{type: roughness, roughness: {_g(r)}}}" + _pm(r, rse))
+        else:
+            lines.append(f"  scattering: {{type: lambertian, diffuse_fraction: {_g(fd)}}}" +
+                         (f"   # ± {_g(se)}" if se else ""))
         return "\n".join(lines) + "\n"
 
 
@@ -297,18 +625,18 @@ class AperturePlateHypothesis(PlateHypothesis):
         return (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0 + 2 * m, y1 - y0 + 2 * m
 
     @classmethod
-    def augment(cls, ir, lighting, known_groups):
+    def _cavity(cls, ir, lighting, gap_mm: float):
+        """``ir`` with the cavity: the plate ``gap_mm`` under the lamps, black sides above it."""
         from lbscene.engine.scene.ir import IROccluder
 
         fx0, fx1, fy0, fy1 = _floor_bounds_mm(ir)
         cx, cy, ou, ov = cls.opening(ir, lighting)
         size = (fx1 - fx0, fy1 - fy0)
+        # the opening's centre follows the lamps: the plate is centred on them
         occ = IROccluder(id=cls.OCCLUDER_ID, type="aperture_plate",
-                         centre_mm=((fx0 + fx1) / 2, (fy0 + fy1) / 2, cls.plate_z_mm(ir, lighting)),
+                         centre_mm=(cx, cy, cls.plate_z_mm(ir, lighting, gap_mm)),
                          normal=(0.0, 0.0, -1.0), u_axis=(1.0, 0.0, 0.0), size_mm=size,
                          opening_mm=(min(ou, size[0]), min(ov, size[1])), lamps=None, material=None)
-        # the opening's centre follows the lamps: the plate is re-centred on them
-        occ = occ.model_copy(update={"centre_mm": (cx, cy, occ.centre_mm[2])})
         # a luminaire cavity is black inside: panels just inside the walls, plate to ceiling
         z0, z1 = occ.centre_mm[2], float(ir.interior.height_mm)
         zc, h = (z0 + z1) / 2, max(z1 - z0, 1.0)
@@ -323,12 +651,57 @@ class AperturePlateHypothesis(PlateHypothesis):
                 sides.append(IROccluder(id=f"{cls.OCCLUDER_ID}_{sid}", type="panel", centre_mm=c, normal=n,
                                         u_axis=u, size_mm=(w - 2 * eps, h), opening_mm=None, lamps=None,
                                         material=None))
-        hi_u = max(size[0] / occ.opening_mm[0], 1.05)
-        hi_v = max(size[1] / occ.opening_mm[1], 1.05)
-        free = [FreeParameter("effect.aperture_occlusion.opening_scale_u", (0.2, min(hi_u, 5.0)), 1.0),
-                FreeParameter("effect.aperture_occlusion.opening_scale_v", (0.2, min(hi_v, 5.0)), 1.0)]
-        return (ir.model_copy(update={"occluders": tuple(ir.occluders) + (occ, *sides)}),
-                {"aperture_occlusion": {}}, free)
+        mine = [o for o in ir.occluders if o.id != cls.OCCLUDER_ID and not o.id.startswith(cls.OCCLUDER_ID + "_")]
+        return ir.model_copy(update={"occluders": tuple(mine) + (occ, *sides)}), occ, size
+
+    @classmethod
+    def across(cls, ir, lighting) -> int:
+        """0 (u, along x) or 1 (v, along y): the opening's extent across the tubes.  A shadow
+        edge parallel to a tube moves the light a tube's points see in steps (no gradient for
+        the fit): that extent is profiled, the other is a fitted scale."""
+        ax = np.array([np.abs(np.asarray(lp.axis, float)) for lp in _lamps_on(ir, lighting) if lp.kind == "tube"])
+        return 0 if ax.size and ax[:, 1].sum() > ax[:, 0].sum() else 1
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        aug, occ, size = cls._cavity(ir, lighting, PLATE_GAP_MM)
+        a = 1 - cls.across(ir, lighting)
+        hi = max(size[a] / occ.opening_mm[a], 1.05)
+        return aug, {"aperture_occlusion": {}}, [
+            FreeParameter(f"effect.aperture_occlusion.opening_scale_{'uv'[a]}", (0.2, min(hi, 5.0)), 1.0)]
+
+    @classmethod
+    def geometry(cls, ir, lighting):
+        out = super().geometry(ir, lighting)
+        occ = next(o for o in ir.occluders if o.id == cls.OCCLUDER_ID)
+        c = cls.across(ir, lighting)
+        o0 = occ.opening_mm[c]
+        grid = tuple(o0 * s for s in OPENING_SCALES if o0 * s <= occ.size_mm[c])
+        if len(grid) >= 3:
+            out.insert(0, GeometryParameter(f"opening_{'uv'[c]}_mm", grid, o0, (grid[0], grid[-1])))
+        rho = _mean_reflectance(ir, ("ceiling",))
+        if rho is not None and rho > 0.01:
+            # the ceiling over the plate is the cavity's inside: its reflectance (first: it
+            # changes the level most)
+            out.insert(0, GeometryParameter("interior_reflectance", tuple(rho * s for s in INTERIOR_SCALES), rho,
+                                            (0.0, rho)))
+        return out
+
+    @classmethod
+    def regeometry(cls, ir, lighting, values):
+        out, occ, _ = cls._cavity(ir, lighting, values.get("gap_mm", PLATE_GAP_MM))
+        c = cls.across(ir, lighting)
+        key = f"opening_{'uv'[c]}_mm"
+        if key in values:
+            op = list(occ.opening_mm)
+            op[c] = values[key]
+            out = out.model_copy(update={"occluders": tuple(
+                o.model_copy(update={"opening_mm": tuple(op)}) if o.id == cls.OCCLUDER_ID else o
+                for o in out.occluders)})
+        if "interior_reflectance" in values:
+            out = _with_surface_material(out, ("ceiling",), _constant_material(
+                ir, CAVITY_MATERIAL_ID, values["interior_reflectance"]))
+        return out
 
     @classmethod
     def starts(cls):
@@ -342,16 +715,28 @@ class AperturePlateHypothesis(PlateHypothesis):
         sv = fit.values.get("effect.aperture_occlusion.opening_scale_v", 1.0)
         ou = min(o.opening_mm[0] * su, o.size_mm[0])
         ov = min(o.opening_mm[1] * sv, o.size_mm[1])
-        eu = fit.stderr.get("effect.aperture_occlusion.opening_scale_u")
-        ev = fit.stderr.get("effect.aperture_occlusion.opening_scale_v")
-        err = ""
-        if eu is not None and ev is not None:
-            err = f"   # ± [{_g(o.opening_mm[0] * eu)}, {_g(o.opening_mm[1] * ev)}] mm"
+        geo = (getattr(fit, "hypothesis_data", None) or {}).get("geometry", {}).get(cls.id, {})
+        errs = []
+        for k, name in enumerate("uv"):
+            se = fit.stderr.get(f"effect.aperture_occlusion.opening_scale_{name}")
+            se = o.opening_mm[k] * se if se is not None else geo.get(f"opening_{name}_mm", (0, None))[1]
+            errs.append("not pinned" if se is None else _g(se))
+        err = f"   # opening ± [{errs[0]}, {errs[1]}] mm"
         c = o.centre_mm
-        out = ("occluders:   # hypothesis: " + cls.summary + "; height assumed, opening fitted\n"
+        gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
+        out = ""
+        if "interior_reflectance" in geo:
+            val, val_se = geo["interior_reflectance"]
+            out += ("materials:   # hypothesis: the cavity's inside (the ceiling over the plate), "
+                    "reflectance fitted\n"
+                    f"  {CAVITY_MATERIAL_ID}: {{type: diffuse, reflectance: {{type: constant, value: {val:.3f}}}}}"
+                    + _pm(val, val_se) + "\nsurfaces:\n"
+                    f"  ceiling: {CAVITY_MATERIAL_ID}\n")
+        out += ("occluders:   # hypothesis: " + cls.summary + "; height and opening fitted\n"
                f"  - {{id: {o.id}, type: aperture_plate, centre_mm: [{_g(c[0])}, {_g(c[1])}, {_g(c[2])}], "
                f"normal: [0, 0, -1], size_mm: [{_g(o.size_mm[0])}, {_g(o.size_mm[1])}], "
-               f"opening_mm: [{_g(ou)}, {_g(ov)}]}}{err}\n")
+               f"opening_mm: [{_g(ou)}, {_g(ov)}]}}{err}\n"
+               f"    # plate height z {_g(c[2])} mm" + _pm(c[2], gse, " mm").replace("   #", ";", 1) + "\n")
         for p in ir.occluders:
             if p.id.startswith(cls.OCCLUDER_ID + "_"):
                 q, n, u = p.centre_mm, p.normal, p.u_axis
@@ -371,6 +756,160 @@ def filter_basis_on_knots(inner_nm) -> np.ndarray:
     t = np.concatenate([[inner[0]] * deg, inner, [inner[-1]] * deg])
     x = np.clip(_WL, inner[0], inner[-1] - 1e-9)
     return BSpline.design_matrix(x, t, deg).toarray()
+
+
+class MirrorHypothesis(Hypothesis):
+    id = "mirror"
+    effect = "reflector"
+    channel = "spatial"
+    summary = "a mirror above the lamps, facing down"
+
+    @classmethod
+    def _lamps(cls, ir, lighting):
+        return [lp for lp in _lamps_on(ir, lighting) if lp.kind in ("tube", "bulb") and lp.mount == "booth"]
+
+    @classmethod
+    def applicable(cls, ir, lighting):
+        why = super().applicable(ir, lighting)
+        if why is None and not cls._lamps(ir, lighting):
+            why = "no tube or bulb is on"
+        return why
+
+    @classmethod
+    def declared(cls, ir, lighting):
+        if any(lp.reflector for lp in _lamps_on(ir, lighting)):
+            return "the lamps that are on have reflectors (the reflector effect tests them)"
+        return None
+
+    @classmethod
+    def _grid(cls, ir, lighting) -> tuple[float, ...]:
+        """Mirror distances that fit between every lamp's body and the ceiling."""
+        lamps = cls._lamps(ir, lighting)
+        room = min(float(ir.interior.height_mm) - float(lp.position_mm[2]) for lp in lamps) - 1.0
+        r = max(float(lp.radius_mm) for lp in lamps)
+        return tuple(d for d in MIRROR_DISTANCES_MM if r + 2.0 < d <= room)
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        from lbscene.engine.scene.ir import IRReflector, IRSpectrum
+
+        grid = cls._grid(ir, lighting)
+        d0 = grid[min(1, len(grid) - 1)] if grid else max(float(lp.radius_mm) for lp in cls._lamps(ir, lighting)) + 5
+        refl = IRReflector(id=FITTED_MIRROR_ID, type="plane", reflectance=IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid),
+                           distance_mm=d0, normal=(0.0, 0.0, -1.0), width_mm=MIRROR_WIDTH_MM)
+        ids = {lp.id for lp in cls._lamps(ir, lighting)}
+        lamps = tuple(lp.model_copy(update={"reflector": FITTED_MIRROR_ID}) if lp.id in ids else lp for lp in ir.lamps)
+        aug = ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: refl}, "lamps": lamps})
+        return aug, {"reflector": {}}, [FreeParameter("effect.reflector.reflectance_scale", (0.05, 1.0), 0.8)]
+
+    @classmethod
+    def geometry(cls, ir, lighting):
+        grid = cls._grid(ir, lighting)
+        if len(grid) < 3:
+            return []
+        return [GeometryParameter("distance_mm", grid, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
+                                  (grid[0], grid[-1]))]
+
+    @classmethod
+    def regeometry(cls, ir, lighting, values):
+        r = ir.reflectors[FITTED_MIRROR_ID].model_copy(update={"distance_mm": values["distance_mm"]})
+        return ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: r}})
+
+    @classmethod
+    def hardware_yaml(cls, ir, fit):
+        r = ir.reflectors[FITTED_MIRROR_ID]
+        rho = fit.values.get("effect.reflector.reflectance_scale", 0.8)
+        se = fit.stderr.get("effect.reflector.reflectance_scale")
+        d, dse = _geo(fit, cls.id, "distance_mm", r.distance_mm)
+        lamps = [lp.id for lp in ir.lamps if lp.reflector == FITTED_MIRROR_ID]
+        return (f"reflectors:   # hypothesis: {cls.summary}; width assumed, distance and reflectance fitted\n"
+                f"  {FITTED_MIRROR_ID}: {{type: plane, reflectance: {{type: constant, value: {rho:.3f}}}, "
+                f"distance_mm: {_g(r.distance_mm)}, normal: [0, 0, -1], width_mm: {_g(r.width_mm)}}}"
+                + (f"   # reflectance ± {_g(se)};" if se else "   #") + _pm(d, dse, " mm").replace("   #", " distance", 1)
+                + "\nlamps:   # the lamps that are on get the mirror (merged by id)\n"
+                + "".join(f"  - {{id: {i}, reflector: {FITTED_MIRROR_ID}}}\n" for i in lamps))
+
+
+class SurfaceReflectanceHypothesis(Hypothesis):
+    """A surface (``roles``) whose reflectance differs from its declared material's: the
+    ``surface_reflectance`` effect's scale on it is fitted (uncertainty from the Jacobian), and
+    the fitted material is written."""
+
+    effect = "surface_reflectance"
+    channel = "spatial"
+    roles: ClassVar[tuple[str, ...]]
+    param: ClassVar[str]
+    material_id: ClassVar[str]
+
+    @classmethod
+    def declared(cls, ir, lighting):
+        if "surface_reflectance" in ir.effects:
+            return "the booth declares surface_reflectance (its scales are that effect's to fit)"
+        if "interreflection" not in ir.effects:
+            return "inter-reflection is off: the model's surfaces reflect nothing"
+        rho = _mean_reflectance(ir, cls.roles)
+        if rho is None:
+            return f"the booth has no {' or '.join(cls.roles)}"
+        if rho < 0.02:
+            return f"the {' and '.join(cls.roles)} are declared black: a scale on them changes nothing"
+        return None
+
+    @classmethod
+    def _rho_max(cls, ir) -> float:
+        return max(float(ir.materials[s.material].reflectance.array_1nm.max())
+                   for s in ir.surfaces if s.role in cls.roles)
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
+        hi = max(1.05, min(3.0, 0.99 / max(cls._rho_max(ir), 1e-3)))
+        return ir, {"surface_reflectance": {}}, [
+            FreeParameter(f"effect.surface_reflectance.{cls.param}", (0.02, hi), 1.0)]
+
+    @classmethod
+    def hardware_yaml(cls, ir, fit):
+        s = fit.values.get(f"effect.surface_reflectance.{cls.param}", 1.0)
+        se = fit.stderr.get(f"effect.surface_reflectance.{cls.param}")
+        # the booth's own inter-reflection scale, refitted jointly, multiplies every surface
+        g = fit.values.get("effect.interreflection.reflectance_scale", 1.0)
+        gse = fit.stderr.get("effect.interreflection.reflectance_scale")
+        rho = _mean_reflectance(ir, cls.roles)
+        mats = {ir.materials[x.material].reflectance.values_1nm for x in ir.surfaces if x.role in cls.roles}
+        flat = all(np.ptp(np.asarray(m)[40:341]) < 1e-6 for m in mats)
+        note = "" if flat else " (the declared spectra's mean; their shape is not kept)"
+        present = [x.role for x in ir.surfaces if x.role in cls.roles]
+        out = (f"materials:   # hypothesis: {cls.summary}; reflectance fitted{note}\n"
+               f"  {cls.material_id}: {{type: diffuse, reflectance: {{type: constant, value: {min(rho * s * g, 0.99):.3f}}}}}"
+               + (f"   # ± {_g(rho * g * se)}" if se else "   # not pinned by the readings") + "\n")
+        roles = {r: cls.material_id for r in present}
+        if abs(g - 1.0) > JOINT_SCALE_MIN:
+            # the readings also scale the other surfaces: written, so that the booth predicts
+            # what the fit did
+            out += (f"  # the joint fit scales every surface's reflectance by {g:.3f}"
+                    + (f" ± {_g(gse)}" if gse else "") + " "
+                    "(inter-reflection's reflectance_scale): the other surfaces as fitted\n")
+            for x in ir.surfaces:
+                if x.role in BOX_SURFACE_ROLES and x.role not in cls.roles:
+                    r0 = float(np.mean(ir.materials[x.material].reflectance.array_1nm[40:341]))
+                    out += (f"  fitted_{x.role}: {{type: diffuse, reflectance: {{type: constant, "
+                            f"value: {min(r0 * g, 0.99):.3f}}}}}\n")
+                    roles[x.role] = f"fitted_{x.role}"
+        return out + "surfaces:\n" + "".join(f"  {r}: {m}\n" for r, m in roles.items())
+
+
+class CeilingReflectanceHypothesis(SurfaceReflectanceHypothesis):
+    id = "ceiling_reflectance"
+    summary = "the ceiling reflects otherwise than declared"
+    roles = ("ceiling",)
+    param = "ceiling_scale"
+    material_id = "fitted_ceiling"
+
+
+class WallsReflectanceHypothesis(SurfaceReflectanceHypothesis):
+    id = "walls_reflectance"
+    summary = "the side and rear walls reflect otherwise than declared"
+    roles = ("left_wall", "right_wall", "rear_wall", "front_wall")
+    param = "walls_scale"
+    material_id = "fitted_walls"
 
 
 def filter_basis(k: int = FILTER_BASIS, lo_nm: float = 380.0, hi_nm: float = 780.0) -> np.ndarray:
@@ -805,7 +1344,8 @@ class LampAgeingHypothesis(Hypothesis):
 
 #: hypothesis id → class
 HYPOTHESES: dict[str, type[Hypothesis]] = {
-    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, SmoothFilterHypothesis,
+    h.id: h for h in (DiffuserPlateHypothesis, AperturePlateHypothesis, MirrorHypothesis,
+                      CeilingReflectanceHypothesis, WallsReflectanceHypothesis, SmoothFilterHypothesis,
                       LampAgeingHypothesis)}
 
 

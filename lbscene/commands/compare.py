@@ -127,7 +127,8 @@ def print_text(res, console) -> None:
     for x in d.explanation:
         console.print(f"  {x}")
     if d.snippet:
-        console.print("add to the booth file:")
+        console.print("add to the booth file (sections it already has are merged: keys added, list "
+                      "items updated by id; effects: replaced):")
         console.print(d.snippet, markup=False, highlight=False)
     if res.plan is not None and res.plan.points:
         t = Table(title="measure next (where the candidates disagree most)", title_justify="left")

@@ -30,6 +30,11 @@ from lbscene.engine.light.plates import (OpalEntryWeight, diffuser_fraction, dif
 __all__ = ["DiffuserEffect"]
 
 
+#: elements of one block of the rough plate's BTDF table (cells × directions × emitter points):
+#: about 128 MB of float64 at a time
+RADIANCE_BLOCK_ELEMENTS = 16_000_000
+
+
 @register_effect
 class DiffuserEffect(PhysicalEffect):
     id = "diffuser"
@@ -153,10 +158,16 @@ class DiffuserEffect(PhysicalEffect):
             cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
             phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
             out = np.zeros(dirs.shape[:2] + (len(descr),))
+            M = dirs.shape[1]
             for j in range(len(descr)):
-                f = slab.btdf(cos_i[j][:, None, :], cos_o[:, :, None],
-                              phi_o[:, :, None] - phi_p[j][:, None, :])            # (C, M, n)
-                out[:, :, j] = np.einsum("cmn,cn->cm", f, E[j])
+                # the BTDF table (C, m, n) in blocks of directions: bounded memory however many
+                # receivers (a radiosity's patch points) look at the plate
+                step = max(1, RADIANCE_BLOCK_ELEMENTS // max(1, C * E[j].shape[1]))
+                for a in range(0, M, step):
+                    b = min(M, a + step)
+                    f = slab.btdf(cos_i[j][:, None, :], cos_o[:, a:b, None],
+                                  phi_o[:, a:b, None] - phi_p[j][:, None, :])      # (C, m, n)
+                    out[:, a:b, j] = np.einsum("cmn,cn->cm", f, E[j])
             return out
 
         return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
