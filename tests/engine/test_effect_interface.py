@@ -17,7 +17,13 @@ def test_registered_effect_conforms(eid):
     assert issubclass(cls, Effect) and cls.id == eid
     defined = [h for h in HOOKS if getattr(cls, h, None) is not None]
     if issubclass(cls, PhysicalEffect):
-        assert defined, f"{eid} defines no hook"
+        if cls.applied_by is None:
+            assert defined, f"{eid} defines no hook"
+        else:
+            # a parameter-only effect: the effect it names applies it in its global transport
+            assert not defined, f"{eid} both defines hooks and names applied_by"
+            host = available_effects()[cls.applied_by]
+            assert getattr(host, "global_transport", None) is not None, (eid, cls.applied_by)
         assert "forward" in cls.backends and set(cls.backends) <= BACKENDS
     for h in defined:
         raw = inspect.getattr_static(cls, h)

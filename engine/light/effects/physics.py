@@ -432,6 +432,9 @@ class PhysicalEffect(Effect):
 
     #: backends that model this effect (see :data:`BACKENDS`)
     backends: ClassVar[frozenset[str]] = BACKENDS
+    #: an effect with no hook of its own names the effect whose ``global_transport`` applies its
+    #: parameters (``surface_reflectance``: the ``interreflection``'s radiosity scales the surfaces)
+    applied_by: ClassVar[str | None] = None
     #: public methods that are not hooks
     helpers: ClassVar[tuple[str, ...]] = ()
 

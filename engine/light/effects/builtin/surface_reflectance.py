@@ -30,6 +30,11 @@ class SurfaceReflectanceEffect(PhysicalEffect):
     summary = "The ceiling, walls or floor reflect otherwise than their declared materials."
     kind = "global"
     order = 890
+    # no hook of its own: the inter-reflection's radiosity applies the scales to its patches
+    applied_by = "interreflection"
+    # the Monte Carlo reference engine, Cycles and the realtime graph's own shading do not scale
+    # the surfaces (the realtime graph's vertex light comes from the forward model)
+    backends = frozenset({"forward"})
     fit_parameters = {"ceiling_scale": (0.02, 3.0), "walls_scale": (0.02, 3.0)}
     fit_initial = {"ceiling_scale": 1.0, "walls_scale": 1.0}
 
