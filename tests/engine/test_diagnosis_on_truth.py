@@ -73,9 +73,9 @@ CASES = [
     Case("interreflection-05-known", "walls-05", "floor", ("effect:interreflection",), True,
          ("missing:interreflection",)),
     Case("aperture-declared-known", "cavity-aperture", "a3", ("effect:aperture_occlusion",), True,
-         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion")),
+         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
     Case("filter-declared-known", "filter-dip", "a3", ("effect:spectral_filter",), True,
-         ("missing:spectral_filter",), tile=True),
+         ("missing:spectral_filter",), tile=True, slow=True),
     # one hidden effect, hardware not declared: a hypothesis must find it
     Case("aperture-undeclared-known", "cavity-aperture", "floor",
          ("effect:aperture_occlusion", "section:occluders"), True,

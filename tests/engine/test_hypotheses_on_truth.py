@@ -179,6 +179,7 @@ def test_hypothesis_on_independent_truth(case, tmp_path):
         assert row["rmse_after"] <= AFTER_FACTOR * NOISE_PERCENT, row
 
 
+@pytest.mark.slow
 def test_the_cavity_hypothesis_fits_the_truths_cavity(tmp_path):
     """The cavity hypothesis alone on the floor-wide grid, output known: its profiled hardware
     (plate height, opening across the tubes, the inside's reflectance) brings the error to the

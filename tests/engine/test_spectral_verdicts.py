@@ -221,7 +221,7 @@ def aged_case(tmp: Path, tilt: float, known: bool = True) -> Path:
     return _write_case(tmp, SHIFT_SCENE, ("spd:D65",), E, wl, L_new, 1.0, known, 5)
 
 
-@pytest.mark.parametrize("tilt", [0.0, 0.15])
+@pytest.mark.parametrize("tilt", [pytest.param(0.0, marks=pytest.mark.slow), 0.15])
 def test_an_aged_lamp_with_its_output_known_is_ageing_tied_with_a_filter(tilt, tmp_path):
     """A filter and a reshaped lamp spectrum are the same to a spectroradiometer: a tie, the
     simpler explanation first, never a filter picked by a margin."""
