@@ -974,8 +974,8 @@ class _ReshapedProblem(FitProblem):
         self._eff, self._lo = sb.eff, sb.lo
 
     def factors(self, values_nl) -> np.ndarray:
-        """``(G, 471)``: the factor on each group's spectrum."""
-        raise NotImplementedError
+        """``(G, 471)``: the factor on each group's spectrum (each reshaping defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} defines no factor on the groups' spectra")
 
     def components(self, values_nl):
         key = tuple(float(v) for v in values_nl)

@@ -96,7 +96,8 @@ def inspect(path):
                                 "props": {k: sc[k] for k in sc.keys() if isinstance(sc[k], str)}}))
 
 
-def render(path, lightings, x_mm, y_mm, z_mm, samples, max_bounces=None):
+def _open(path, samples):
+    """Open the exported file and set Cycles for a reproducible CPU render of ``samples``."""
     bpy.ops.wm.open_mainfile(filepath=path)
     sc = bpy.context.scene
     c = sc.cycles
@@ -105,6 +106,12 @@ def render(path, lightings, x_mm, y_mm, z_mm, samples, max_bounces=None):
     c.seed = 1
     c.use_denoising = False
     c.use_adaptive_sampling = False
+    return sc
+
+
+def render(path, lightings, x_mm, y_mm, z_mm, samples, max_bounces=None):
+    sc = _open(path, samples)
+    c = sc.cycles
     if max_bounces is not None:
         c.max_bounces = max_bounces      # 0: the lamps' direct light only
     m = 1e-3
@@ -157,14 +164,8 @@ def env_render(path, lightings, x_mm, y_mm, z_mm, samples, width=256):
     plate, which a diffuse probe reaches only by chance."""
     from mathutils import Matrix
 
-    bpy.ops.wm.open_mainfile(filepath=path)
-    sc = bpy.context.scene
+    sc = _open(path, samples)
     c = sc.cycles
-    c.device = "CPU"
-    c.samples = samples
-    c.seed = 1
-    c.use_denoising = False
-    c.use_adaptive_sampling = False
     for obj in sc.objects:
         if obj.type in ("MESH", "LIGHT") and str(obj.get("lbscene_role", "")).startswith("lamp"):
             obj.visible_camera = True
