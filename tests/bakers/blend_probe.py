@@ -165,7 +165,6 @@ def env_render(path, lightings, x_mm, y_mm, z_mm, samples, width=256):
     from mathutils import Matrix
 
     sc = _open(path, samples)
-    c = sc.cycles
     for obj in sc.objects:
         if obj.type in ("MESH", "LIGHT") and str(obj.get("lbscene_role", "")).startswith("lamp"):
             obj.visible_camera = True
