@@ -1,11 +1,13 @@
 """Benchmark: the first frame of every shipped booth, the BYK web export and the first BYK compare.
 
 Run:  .venv/bin/python benchmarks/bench_first_frame.py [--baseline main] [--revision REV] [--booths A,B]
-      [--skip-web] [--skip-compare] [--skip-ratio] [--json]
+      [--skip-web] [--skip-compare] [--skip-ratio] [--no-tables] [--json]
 
 Every row runs in a fresh process (as ``lbscene render``, ``export-web`` or ``compare`` does), with
 ``LBSCENE_CACHE_DIR`` set to a folder of its own: ``empty`` (a first run on a new machine), then
-``warm`` (the same folder again, a later run).  ``--baseline REV`` measures git revision ``REV``
+``warm`` (the same folder again, a later run).  The shipped booths' precomputed light
+(``engine/tables/``, ``scripts/make_tables.py``) is read as lbscene reads it; ``--no-tables``
+turns it off (``LBSCENE_SHIPPED_TABLES=off``): what a booth of one's own costs the first time.  ``--baseline REV`` measures git revision ``REV``
 (run from its own tree through ``PYTHONPATH``) alongside the working tree, interleaved row by row,
 so that before and after see the same load.
 
@@ -99,6 +101,8 @@ def _child(what: str, arg: str) -> int:
 
 def _run(what: str, arg: str, cache: Path, pythonpath: Path | None) -> dict:
     env = {**os.environ, "LBSCENE_CACHE_DIR": str(cache), "PYOPENGL_PLATFORM": "egl"}
+    if NO_TABLES:
+        env["LBSCENE_SHIPPED_TABLES"] = "off"
     if pythonpath is not None:
         env["PYTHONPATH"] = str(pythonpath)
     p = subprocess.run([sys.executable, __file__, "--child", what, arg], env=env, capture_output=True,
@@ -107,6 +111,9 @@ def _run(what: str, arg: str, cache: Path, pythonpath: Path | None) -> dict:
         if line.startswith("RESULT "):
             return json.loads(line[7:])
     raise RuntimeError(f"{what} {arg} failed:\n{p.stderr[-3000:]}")
+
+
+NO_TABLES = False
 
 
 def _package_of(rev: str, root: Path) -> Path:
@@ -158,11 +165,15 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-web", action="store_true")
     ap.add_argument("--skip-compare", action="store_true")
     ap.add_argument("--skip-ratio", action="store_true")
+    ap.add_argument("--no-tables", action="store_true", help="without the shipped tables (a new booth)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
+    global NO_TABLES
+    NO_TABLES = a.no_tables
     if a.child:
         return _child(*a.child)
-    info: dict = {"cpus": os.cpu_count(), "loadavg_start": os.getloadavg()[0], "rows": {}}
+    info: dict = {"cpus": os.cpu_count(), "loadavg_start": os.getloadavg()[0], "rows": {},
+                  "shipped_tables": not a.no_tables}
     with tempfile.TemporaryDirectory(prefix="lbscene-bench-") as td:
         root = Path(td)
         trees = {"before": _package_of(a.baseline, root)} if a.baseline else {}
@@ -182,7 +193,8 @@ def main(argv=None) -> int:
         return 0
     print(f"cpus {info['cpus']}, load average {info['loadavg_start']:.2f} → {info['loadavg_end']:.2f}; "
           f"seconds, each a fresh process; before: {a.baseline or '-'}, "
-          f"after: {a.revision or 'the working tree'}")
+          f"after: {a.revision or 'the working tree'}; shipped tables "
+          f"{'off (a new booth)' if a.no_tables else 'on'}")
     cols = [f"{t} {s}" for s in ("empty", "warm") for t in trees]
     print(f"\n{'':36s}" + "".join(f"{c + ' s':>15s}" for c in cols))
     for name, row in info["rows"].items():

@@ -300,17 +300,11 @@ def _irradiance_bands(ir, lighting, points, normals, cell_mm: float, chunk: int 
     return np.clip(out, 0.0, None)
 
 
-_CODE_DIGESTS: dict = {}
-
-
 def model_code_digest(ir) -> str:
-    """Hash of everything besides the IR that the light at the vertices is computed from.
-
-    The source and data files of the transport (``engine/light``, with its effects and tables),
-    of the spectra (``engine/spectra``), of this module and of every enabled effect's module
-    (plugins included).  A change to any of them gives the per-vertex results another disk
-    cache key, so an edited model never reads a stale result (hashing ~2 MB: a few ms, once
-    per process and set of effects).
+    """Hash of everything besides the IR that the light at the vertices is computed from: the
+    light model's code (:func:`lbscene.engine.light.code_digest.light_code_digest`) and this
+    module.  A change to any of them gives the per-vertex results another disk cache key, so an
+    edited model never reads a stale result.
 
     Parameters
     ----------
@@ -322,33 +316,11 @@ def model_code_digest(ir) -> str:
     str
         Hex digest.
     """
-    import inspect
     from pathlib import Path
 
-    from lbscene.engine import light, spectra
-    from lbscene.engine.light.effects.registry import get_effect
+    from lbscene.engine.light.code_digest import light_code_digest
 
-    files = set()
-    for pkg in (light, spectra):
-        root = Path(pkg.__file__).parent
-        files.update(f for f in root.rglob("*") if f.is_file() and "__pycache__" not in f.parts)
-    files.add(Path(__file__))
-    for eid in sorted(ir.effects):
-        try:
-            src = inspect.getsourcefile(get_effect(eid))
-        except (KeyError, TypeError):
-            src = None
-        if src:
-            files.add(Path(src))
-    key = tuple(sorted(str(f) for f in files))
-    hit = _CODE_DIGESTS.get(key)
-    if hit is None:
-        h = hashlib.blake2b(digest_size=16)
-        for f in sorted(files, key=lambda f: (f.name, str(f))):
-            h.update(f.name.encode())
-            h.update(f.read_bytes())
-        hit = _CODE_DIGESTS[key] = h.hexdigest()
-    return hit
+    return light_code_digest(ir, extra=(Path(__file__),))
 
 
 def _vertex_irradiance_bands(ir, lighting, points, normals, cell_mm: float) -> np.ndarray:
@@ -360,7 +332,7 @@ def _vertex_irradiance_bands(ir, lighting, points, normals, cell_mm: float) -> n
     return cached_array("vertex_irradiance", (np.asarray(points, float), np.asarray(normals, float)),
                         (ir.content_hash, lighting, float(cell_mm), model_code_digest(ir)),
                         lambda: _irradiance_bands(ir, lighting, points, normals, cell_mm),
-                        shape=(len(points), ir.grid.count))
+                        shape=(len(points), ir.grid.count), shipped=True)
 
 
 def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
@@ -374,7 +346,7 @@ def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
 
     return cached_array("point_irradiance_1nm", (np.asarray(point, float), np.asarray(normal, float)),
                         (ir.content_hash, lighting, model_code_digest(ir)), compute,
-                        shape=(REFERENCE_WAVELENGTHS_NM.size,))
+                        shape=(REFERENCE_WAVELENGTHS_NM.size,), shipped=True)
 
 
 def noise_texture(mask: np.ndarray) -> np.ndarray:

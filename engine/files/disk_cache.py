@@ -16,6 +16,13 @@ not help the edit → compare loop; this one keeps them on disk.
   that fails to load is recomputed and rewritten.  The folder is kept under
   ``$LBSCENE_CACHE_MAX_MB`` (default 2048) by removing the least recently used.
 * A cache that cannot be written (read-only home, full disk) only costs time.
+* **Shipped tables.**  A computation called with ``shipped=True`` is also looked up, under the
+  same key, among the read-only tables that travel with lbscene (``engine/tables/``, made by
+  ``scripts/make_tables.py`` for the shipped booths): the first frame of a shipped booth on a new
+  machine reads its light at the vertices instead of computing it.  The key holds everything
+  the result depends on (the booth's content, the receivers, the model's code), so an edited
+  booth or model finds no table and computes, as before.  ``LBSCENE_SHIPPED_TABLES=off`` turns
+  them off (benchmarks of a new booth, the test that re-makes them).
 
 What the cache touches (the folder may hold anything else):
 
@@ -48,7 +55,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "INDEX_NAME", "array_key"]
+__all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "INDEX_NAME", "array_key", "tables_dir",
+           "recording_tables", "table_entry_name", "peek_array"]
 
 #: bump when a cached computation changes its result for the same inputs
 FORMAT = "lbscene-geometry-1"
@@ -60,6 +68,56 @@ _KIND_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _ENTRY_RE = re.compile(r"^(?P<kind>[A-Za-z0-9_-]{1,64})/(?P<name>[0-9a-f]{40}\.npy)$")
 _O_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
 _O_DIR = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+
+
+#: the shipped tables' folder (``kind/key.npy``, float32), inside the installed package
+TABLES_DIR = Path(__file__).resolve().parents[1] / "tables"
+#: a shipped table is read only up to this size
+MAX_TABLE_BYTES = 64 * 2 ** 20
+#: while :func:`recording_tables` runs: ``{"kind/key.npy": array}`` of every shipped-table computation
+_RECORD: dict | None = None
+
+
+def tables_dir() -> Path | None:
+    """The shipped tables' folder, or None when ``LBSCENE_SHIPPED_TABLES`` is ``off``."""
+    if os.environ.get("LBSCENE_SHIPPED_TABLES", "").strip().lower() in ("off", "0", "no", "false"):
+        return None
+    return TABLES_DIR
+
+
+#: decimals to which float arrays are rounded in a shipped table's key: the table is made on one
+#: machine and read on another, whose libraries may differ in the last bit of a computed
+#: coordinate (10⁻¹³ mm) — never by 10⁻⁴
+TABLE_KEY_DECIMALS = 4
+
+
+def table_entry_name(kind: str, arrays: tuple, params: tuple) -> str:
+    """``kind/key.npy``: where a computation's shipped table lies under :func:`tables_dir` (the
+    key of :func:`cached_array`'s, with float arrays rounded to :data:`TABLE_KEY_DECIMALS`)."""
+    def rounded(a):
+        a = np.asarray(a)
+        return np.round(a, TABLE_KEY_DECIMALS) + 0.0 if a.dtype.kind == "f" else a     # + 0.0: no −0
+
+    return f"{kind}/{_key(kind, tuple(rounded(a) for a in arrays), params)}.npy"
+
+
+class recording_tables:
+    """Context manager: collect ``{"kind/key.npy": result}`` of every ``shipped=True`` computation
+    run inside it (cache and shipped tables bypassed: each is computed), for the script that
+    writes the tables.
+
+    >>> with recording_tables() as rec:                          # doctest: +SKIP
+    ...     render_every_view()
+    """
+
+    def __enter__(self) -> dict:
+        global _RECORD
+        self._saved, _RECORD = _RECORD, {}
+        return _RECORD
+
+    def __exit__(self, *exc) -> None:
+        global _RECORD
+        _RECORD = self._saved
 
 
 def array_key(*arrays) -> str:
@@ -227,7 +285,7 @@ def _valid(out: np.ndarray, shape: tuple | None) -> bool:
     return out.dtype.kind in "fiub"
 
 
-def _load(path: Path, shape: tuple | None, limit: int) -> np.ndarray | None:
+def _load(path: Path, shape: tuple | None, limit: int, touch: bool = True) -> np.ndarray | None:
     """The entry at ``path`` if it is a sound one, else None — without blocking (a FIFO) and without
     allocating more than the file holds (a header claiming 10¹¹ elements)."""
     try:
@@ -261,7 +319,8 @@ def _load(path: Path, shape: tuple | None, limit: int) -> np.ndarray | None:
         out = np.frombuffer(buf, dtype=dtype).reshape(dims, order="F" if fortran else "C")
         if not _valid(out, shape):
             return None
-        os.utime(fd)                       # least recently *used* goes first when pruning
+        if touch:
+            os.utime(fd)                   # least recently *used* goes first when pruning
         return out
     except (OSError, ValueError, EOFError, OverflowError):
         return None
@@ -318,15 +377,26 @@ def _store(root: Path, kind: str, key: str, out: np.ndarray, limit: int) -> None
 
 
 def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], np.ndarray],
-                 shape: tuple | None = None) -> np.ndarray:
+                 shape: tuple | None = None, shipped: bool = False) -> np.ndarray:
     """``compute()``, or its earlier result for the same ``kind``, input ``arrays`` and ``params``.
 
     ``kind`` names the computation (a folder of the cache); ``params`` are plain
     values (numbers, strings, tuples) that change its result.  An entry that cannot be
     read, or has another ``shape`` than expected, non-finite values or a non-numeric dtype
     (a damaged or foreign file under the right name), is recomputed; it is replaced only if
-    it is the cache's own file (see the module's notes).
+    it is the cache's own file (see the module's notes).  ``shipped``: also look among the
+    shipped tables (after the cache, before computing); a table is read as float64.
     """
+    if _RECORD is not None and shipped:
+        out = np.asarray(compute())
+        _RECORD[table_entry_name(kind, arrays, params)] = out
+        return out
+    if shipped and _KIND_RE.match(kind):
+        tables = tables_dir()
+        if tables is not None:
+            hit = _load(tables / table_entry_name(kind, arrays, params), shape, MAX_TABLE_BYTES, touch=False)
+            if hit is not None:
+                return hit.astype(np.float64)
     root = cache_dir()
     if root is None or not _KIND_RE.match(kind):
         return compute()
@@ -341,3 +411,22 @@ def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], 
     except (OSError, ValueError):
         pass
     return out
+
+
+def peek_array(kind: str, arrays: tuple, params: tuple, shape: tuple | None = None) -> np.ndarray | None:
+    """The result :func:`cached_array` (with ``shipped=True``) would return without computing:
+    the cache's entry or the shipped table, as float64; None when neither has it (nothing is
+    computed, nothing written; while tables are being recorded, always None)."""
+    if _RECORD is not None or not _KIND_RE.match(kind):
+        return None
+    root = cache_dir()
+    if root is not None:
+        out = _load(root / kind / f"{_key(kind, arrays, params)}.npy", shape, max_bytes())
+        if out is not None:
+            return out.astype(np.float64, copy=False)
+    tables = tables_dir()
+    if tables is not None:
+        out = _load(tables / table_entry_name(kind, arrays, params), shape, MAX_TABLE_BYTES, touch=False)
+        if out is not None:
+            return out.astype(np.float64)
+    return None

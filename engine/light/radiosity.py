@@ -598,29 +598,15 @@ class RadiosityTransport:
             check_work("patches", len(patches.polys),
                        what=f"inter-reflection patches at patch_size_mm {p.patch_size_mm:g}")
             blockers = mesh_triangles(ir) if p.meshes else np.zeros((0, 3, 3))
-            # the booth's heaviest geometry (BYK: 2678 patches, 10 s): kept on disk across runs
-            F = cached_array("form_factors", (patches.polys, patches.normals, blockers), (2, 3.0, NUDGE_MM),
-                             lambda: patch_form_factors(patches, blockers=blockers),
-                             shape=(len(patches.polys), len(patches.polys)))
-            ctx.cache[key] = (patches, F, blockers)
-        self.patches, self.F, self.blockers = ctx.cache[key]
+            ctx.cache[key] = (patches, blockers)
+        self.patches, self.blockers = ctx.cache[key]
         self._patch_key = key
         # lamp bodies and occluders (analytic shapes) block patch-to-patch exchange too
         self.bodies = transport_bodies(ctx, p)
         self._body_sig = _body_signature(self.bodies)
         self._body_digest = np.frombuffer(hashlib.sha256(repr(self._body_sig).encode()).digest(), np.uint8)
-        if self.bodies:
-            bk = key + ("bodies", self._body_sig)
-            if bk not in ctx.cache:
-                ctx.cache[bk] = self._F_past_bodies(self.F)
-            self.F = ctx.cache[bk]
-        # the plate's faces are seen only from the side they face: a polygon form factor does not
-        # tell a face from its back, and the plate is no blocker (light crossing it is the line
-        # factor below), so the ceiling would see the bottom face through the plate
-        self._plate_faces = None
-        if plate:
-            self._plate_faces = self.patches.material == PLATE_MATERIAL
-            self.F = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres), 0.0, self.F)
+        self._plate_faces = self.patches.material == PLATE_MATERIAL if plate else None
+        self._F = None
         # each mesh's vertices: (receiver, patch) pairs whose pyramid misses every mesh's
         # convex hull need no visibility points
         self.hulls = [s.vertex_array for s in ir.surfaces if s.role == "mesh"] if p.meshes else []
@@ -655,22 +641,63 @@ class RadiosityTransport:
         # put the light of a white cavity that reaches the booth below through a rough PMMA
         # plate 14 % under Mitsuba 3: the lines to the floor are steep, where T(θ) > T_h.)
         self.plate_T = None
-        self.cross_pp = None
+        self._cross_pp = None
         if "diffuser" in ctx.effects and ir.diffuser is not None:
-            from .geometry import segment_hits_rectangle
             from .plates import diffuser_rect, diffuser_transmittance_1nm
 
             dp = ctx.params("diffuser")
             self.plate_rect = diffuser_rect(ir)
             self.plate_T = ir.grid.integrate(diffuser_transmittance_1nm(ctx, dp))       # (B,) declared
-            ck = key + ("plate_cross", ir.diffuser.ior, json.dumps(ir.diffuser.scattering, sort_keys=True))
-            if ck not in ctx.cache:
-                c = self.patches.centres
-                ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
-            self.cross_pp = ctx.cache[ck]
         self._B = None
         self._terms = None
         self._E0 = None
+
+    # ------------------------------------------------------------------ form factors
+    @property
+    def F(self) -> np.ndarray:
+        """(P, P) patch-to-patch form factors past meshes and bodies (computed when first asked
+        for: a solution read from the disk cache or the shipped tables needs none)."""
+        if self._F is None:
+            ctx, key = self.ctx, self._patch_key
+            fk = key + ("F",)
+            if fk not in ctx.cache:
+                patches, blockers = self.patches, self.blockers
+                # the booth's heaviest geometry (BYK: ~4000 patches, 10 s): kept on disk across runs
+                ctx.cache[fk] = cached_array("form_factors", (patches.polys, patches.normals, blockers),
+                                             (2, 3.0, NUDGE_MM),
+                                             lambda: patch_form_factors(patches, blockers=blockers),
+                                             shape=(len(patches.polys), len(patches.polys)))
+            F = ctx.cache[fk]
+            if self.bodies:
+                bk = key + ("bodies", self._body_sig)
+                if bk not in ctx.cache:
+                    ctx.cache[bk] = self._F_past_bodies(F)
+                F = ctx.cache[bk]
+            # the plate's faces are seen only from the side they face: a polygon form factor does
+            # not tell a face from its back, and the plate is no blocker (light crossing it is the
+            # line factor below), so the ceiling would see the bottom face through the plate
+            if self._plate_faces is not None:
+                F = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres), 0.0, F)
+            self._F = F
+        return self._F
+
+    @property
+    def cross_pp(self) -> np.ndarray | None:
+        """(P, P) plate line factors between patch centres (:meth:`_plate_line_factor`), or None
+        without a plate."""
+        if self.plate_T is None:
+            return None
+        if self._cross_pp is None:
+            from .geometry import segment_hits_rectangle
+
+            ir = self.ctx.ir
+            ck = self._patch_key + ("plate_cross", ir.diffuser.ior,
+                                    json.dumps(ir.diffuser.scattering, sort_keys=True))
+            if ck not in self.ctx.cache:
+                c = self.patches.centres
+                self.ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
+            self._cross_pp = self.ctx.cache[ck]
+        return self._cross_pp
 
     # ------------------------------------------------------------------ solve
     def _first_order_at_patches(self):
@@ -1039,10 +1066,43 @@ class RadiosityTransport:
             store[k] = lu_factor(np.eye(P) - r[:, None] * Fu)
         return store[k]
 
-    def _solve(self):
-        """Patch radiosity B (bands, patches, terms): for :meth:`patch_radiosity`."""
+    def _solution_params(self) -> tuple:
+        """What the patch radiosity is computed from, as plain values (the key of its disk cache
+        entry and shipped table): the booth's content, the lighting, every effect's parameters
+        and the lamp overrides of the model lighting the patches, its options, and the light
+        model's code.  All of it reproducible from the booth file on any machine."""
+        from .code_digest import light_code_digest
+
+        tm = self._transport_model()
+        return ("patch_radiosity-1", self.ctx.ir.content_hash, tm.lighting,
+                json.dumps(tm.effects, sort_keys=True, default=str),
+                json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str),
+                repr(tm.options), light_code_digest(self.ctx.ir))
+
+    def _solve(self, compute: bool = True) -> bool:
+        """Patch radiosity B (bands, patches, terms): for :meth:`patch_radiosity`.
+
+        The solution is kept in the disk cache (and shipped for the shipped booths), so a later
+        process — another view, the web export, a compare of the same booth — reads it instead of
+        the form factors and the solve.  ``compute=False``: only look it up; returns whether B is
+        known."""
         if self._B is not None:
-            return
+            return True
+        terms, E0 = self._first_order()
+        shape = (self.ctx.ir.grid.count, len(self.patches), len(terms))
+        params = self._solution_params()
+        if not compute:
+            from lbscene.engine.files.disk_cache import peek_array
+
+            hit = peek_array("patch_radiosity", (), params, shape)
+            if hit is None:
+                return False
+            self._B = hit
+            return True
+        self._B = cached_array("patch_radiosity", (), params, self._solve_now, shape=shape, shipped=True)
+        return True
+
+    def _solve_now(self) -> np.ndarray:
         from scipy.linalg import lu_solve
 
         terms, E0 = self._first_order()
@@ -1062,7 +1122,7 @@ class RadiosityTransport:
                 sol.append(acc)
             else:
                 sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
-        self._B = np.stack([sol[i] for i in inv])
+        return np.stack([sol[i] for i in inv])
 
     def _in_front(self, P) -> np.ndarray:
         """(len(P), patches): is point ``P[i]`` on the side patch ``j`` faces?"""
@@ -1095,6 +1155,50 @@ class RadiosityTransport:
         self._solve()
         return self._B
 
+    def _receiver_gather(self, G, P_rx):
+        """``(cross, S_rx)``: the plate line factors between receivers and patches (None without a
+        plate)."""
+        if self.plate_T is None:
+            return None
+        from .geometry import segment_hits_rectangle
+
+        cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
+        return self._plate_line_factor(P_rx, self.patches.centres, cross)
+
+    def _use_solution(self, P_rx) -> bool:
+        """Whether the receivers ``P_rx`` get their light from the patch radiosity (solved here, or
+        read from the disk cache or a shipped table) rather than from receiver operators.
+
+        The first evaluation at a set of receivers uses the solution: one solve with the lamps'
+        terms as right-hand sides, kept on disk for the next process (another view, the web
+        export, a compare).  A fit evaluates the same receivers again and again with other lamp
+        parameters: from the second evaluation on, the operators (built once, a few matrix
+        products per evaluation) are cheaper, unless the solution is known already."""
+        from lbscene.engine.files.disk_cache import array_key
+
+        calls = self.ctx.cache.setdefault("_rad_rx_calls", {})
+        k = (self._patch_key, array_key(P_rx))
+        n = calls.get(k, 0)
+        if len(calls) < 4096:
+            calls[k] = n + 1
+        if self._B is not None or n == 0:
+            return self._solve()
+        return self._solve(compute=False)
+
+    def _gather_solution(self, G, P_rx) -> np.ndarray:
+        """(K, M, B) inter-reflected light at the receivers from the patch radiosity:
+        :math:`G_b B_b` per band (G with the plate's line factors of the band's class)."""
+        uniq, inv, _ = self._band_classes()
+        Pn = len(self.patches)
+        S_rx = self._receiver_gather(G, P_rx)
+        B = self._B
+        out = np.empty((B.shape[2], len(G), B.shape[0]))
+        for j, u in enumerate(uniq):
+            bands = np.nonzero(inv == j)[0]
+            Gj = G if S_rx is None else self._crossed(G, S_rx, u[Pn])
+            out[:, :, bands] = np.einsum("mp,bpk->kmb", Gj, B[bands], optimize=True)
+        return out
+
     def _receiver_operators(self, G, P_rx) -> np.ndarray:
         """(B, M, P) operators R_b = G_b·(I − ρ_b F_b)⁻¹·diag(ρ_b): patch first-order light →
         inter-reflected light at the receivers.
@@ -1115,11 +1219,7 @@ class RadiosityTransport:
         if hit is not None:
             return hit
         Pn = len(self.patches)
-        if self.plate_T is not None:
-            from .geometry import segment_hits_rectangle
-
-            cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
-            S_rx = self._plate_line_factor(P_rx, self.patches.centres, cross)
+        S_rx = self._receiver_gather(G, P_rx)
         ops = []
         for j, u in enumerate(uniq):
             r = u[:Pn]
@@ -1155,7 +1255,10 @@ class RadiosityTransport:
             G = G * Vb
         if self._plate_faces is not None:
             G = np.where(self._plate_faces[None, :] & ~self._in_front(P), 0.0, G)
-        R = self._receiver_operators(G, P)
-        ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
+        if self._use_solution(P):
+            ind = self._gather_solution(G, P)
+        else:
+            R = self._receiver_operators(G, P)
+            ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
                      "indirect") for k, t in enumerate(terms)]

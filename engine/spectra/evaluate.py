@@ -159,10 +159,58 @@ def read_spectrum_csv(path: Path, display: str, column: str | None = None,
     return to_reference(wl, vals, extrapolate=_extrapolation(kind))
 
 
-def _colour_dataset_sd(dataset_name: str, name: str):
+#: colour-science's named spectra (``SDS_ILLUMINANTS``, ``SDS_LIGHT_SOURCES``) as it tabulates them,
+#: written by ``scripts/gen_cie_tables.py`` (a test checks they are current): a booth naming
+#: "D65" or "Philips TL-84" compiles without importing colour-science (2–3 s)
+NAMED_SPECTRA = Path(__file__).resolve().parent / "data" / "named_spectra.npz"
+#: the datasets of :data:`NAMED_SPECTRA`: spec type's dataset name → colour-science attribute
+NAMED_DATASETS = {"illuminant": "SDS_ILLUMINANTS", "light_source": "SDS_LIGHT_SOURCES"}
+#: second radiation constant c₂ (m·K) of Planck's law as CIE 15 adopts it for colorimetry (and
+#: colour-science's ``planck_law`` uses)
+PLANCK_C2_M_K = 1.4388e-2
+
+
+class _NamedSpectrum:
+    """A tabulated spectrum: ``wavelengths`` (nm), ``values``."""
+
+    def __init__(self, wavelengths, values):
+        self.wavelengths = np.asarray(wavelengths, float)
+        self.values = np.asarray(values, float)
+
+
+def named_spectra_from_colour_science() -> dict[str, np.ndarray]:
+    """The arrays of :data:`NAMED_SPECTRA`, from colour-science (the table's source): for each
+    dataset ``names_<dataset>`` and, per name ``i``, ``<dataset>_<i>_wl`` and ``<dataset>_<i>_values``."""
     import colour
 
-    data = colour.SDS_ILLUMINANTS if dataset_name == "illuminant" else colour.SDS_LIGHT_SOURCES
+    out: dict[str, np.ndarray] = {}
+    for dataset, attr in NAMED_DATASETS.items():
+        data = getattr(colour, attr)
+        names = sorted(data.keys())
+        out[f"names_{dataset}"] = np.array(names)
+        for i, n in enumerate(names):
+            out[f"{dataset}_{i}_wl"] = np.asarray(data[n].wavelengths, float)
+            out[f"{dataset}_{i}_values"] = np.asarray(data[n].values, float)
+    return out
+
+
+@lru_cache(maxsize=1)
+def _named_spectra() -> dict[str, dict[str, _NamedSpectrum]]:
+    try:
+        with np.load(NAMED_SPECTRA, allow_pickle=False) as z:
+            arrays = {k: np.array(z[k]) for k in z.files}
+    except (OSError, ValueError, KeyError):          # no table (a partial checkout): the source itself
+        arrays = named_spectra_from_colour_science()
+    out: dict[str, dict[str, _NamedSpectrum]] = {}
+    for dataset in NAMED_DATASETS:
+        names = [str(n) for n in arrays[f"names_{dataset}"]]
+        out[dataset] = {n: _NamedSpectrum(arrays[f"{dataset}_{i}_wl"], arrays[f"{dataset}_{i}_values"])
+                        for i, n in enumerate(names)}
+    return out
+
+
+def _colour_dataset_sd(dataset_name: str, name: str):
+    data = _named_spectra()["illuminant" if dataset_name == "illuminant" else "light_source"]
     key = ILLUMINANT_ALIASES.get(name, name) if dataset_name == "illuminant" else name
     if key in data:
         return data[key]
@@ -173,10 +221,19 @@ def _colour_dataset_sd(dataset_name: str, name: str):
 
 
 def known_names(dataset_name: str) -> list[str]:
-    import colour
+    return sorted(_named_spectra()["illuminant" if dataset_name == "illuminant" else "light_source"])
 
-    data = colour.SDS_ILLUMINANTS if dataset_name == "illuminant" else colour.SDS_LIGHT_SOURCES
-    return sorted(data.keys())
+
+def planck_relative(wavelengths_nm, cct_K: float) -> np.ndarray:
+    """Planck's law relative to its value at :math:`λ_0` = 560 nm:
+    :math:`(λ_0/λ)^5 (e^{c_2/(λ_0 T)} − 1) / (e^{c_2/(λ T)} − 1)` (:data:`PLANCK_C2_M_K`).
+
+    >>> round(float(planck_relative([560.0], 3100.0)[0]), 12)
+    1.0
+    """
+    wl_m = np.asarray(wavelengths_nm, float) * 1e-9
+    ref_m = 560e-9
+    return (ref_m / wl_m) ** 5 * np.expm1(PLANCK_C2_M_K / (ref_m * cct_K)) / np.expm1(PLANCK_C2_M_K / (wl_m * cct_K))
 
 
 def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
@@ -216,11 +273,7 @@ def evaluate_spectrum(spec, resolve=None, kind: SpectrumKind = "emission",
                 + "Every name is listed in the documentation's file reference (Named spectra).")
         values = to_reference(sd.wavelengths, sd.values, extrapolate=ext)
     elif t == "blackbody":
-        import colour
-
-        wl_m = REFERENCE_WAVELENGTHS_NM * 1e-9
-        values = colour.colorimetry.planck_law(wl_m, spec.cct_K)
-        values = values / np.interp(560.0, REFERENCE_WAVELENGTHS_NM, values)
+        values = planck_relative(REFERENCE_WAVELENGTHS_NM, spec.cct_K)
     elif t == "daylight":
         import colour
 
