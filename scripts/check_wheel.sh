@@ -67,4 +67,31 @@ output: {png: grey-d65.png, width_px: 160, height_px: 120}
 YAML
 "$LB" render render.yaml
 test -s grey-d65.png
+
+echo "== the installed wheel reads its shipped tables (the light of every view, no forward model run)"
+LBSCENE_CACHE_DIR=off "$WORK/venv/bin/python" - "$REPO/examples/render/sample-colorchecker-moderate-red-glossy.yaml" <<'PY'
+import sys
+from lbscene.engine.files.load import load_document
+from lbscene.engine.files.shipped import shipped_booth
+from lbscene.engine.scene.compile import compile_booth
+from lbscene.engine.scene.sample import SampleSpec
+from lbscene.runtimes import scene
+from lbscene.runtimes.colour_bridge import srgb_display
+from lbscene.runtimes.graph import build_render_graph
+from lbscene.schemas.sample import Sample
+
+def no_model(*a, **k):
+    raise SystemExit("the installed wheel computed the light of a shipped booth: its tables are missing or "
+                     "its code digest differs from the checkout's")
+
+scene._forward_model = no_model
+sample = SampleSpec.from_document(load_document(sys.argv[1], Sample))
+for name in ("xrite-spectralight-qc", "byk-byko-spectra-effect", "iso3664-p1-d50"):
+    ir = compile_booth(shipped_booth(name).parent)
+    for lighting in ir.lighting:
+        sb = scene.SceneBuilder(ir, build_render_graph(ir, lighting), sample, srgb_display())
+        for view in sb.view_names:
+            sb.view(view)
+print("shipped tables read for every view")
+PY
 echo "check-wheel: OK ($(basename "$WHEEL"))"

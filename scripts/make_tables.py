@@ -3,10 +3,12 @@
 Run:  .venv/bin/python scripts/make_tables.py [--check] [--booths A,B]
 
 For every shipped booth, every lighting and every view of its render graph, the scene of the
-view is built with the example sample (``examples/render/``) while the disk cache records each
-computation it would keep (:func:`lbscene.engine.files.disk_cache.recording_tables`): the patch
-radiosity of each lighting (read by every view, the web export and ``compare``), the light at the
-booth's vertices and at the sample's centre.  They are written as float32 ``.npy`` under
+view is built with the example sample (``examples/render/``), and the light on the A3 grid of the
+seed's measurements is evaluated (what ``compare`` starts with), while the disk cache records
+each computation it would keep (:func:`lbscene.engine.files.disk_cache.recording_tables`): the
+patch radiosity of each lighting (read by every view, the web export and ``compare``), the light
+at the booth's vertices and at the sample's centre, and which parts of each patch the A3 grid's
+points see past the booth's meshes and bodies.  They are written as float32 ``.npy`` under
 ``engine/tables/<kind>/<key>.npy``; tables no longer produced (an edited booth or model) are
 removed.  Their keys hold the booth's content and the light model's code, so a table is only
 ever read for the booth and the code it was made from; a stale one is never used, and a missing
@@ -30,6 +32,8 @@ REPO = Path(__file__).resolve().parents[1]
 TABLES = REPO / "engine" / "tables"
 BOOTHS = ["byk-byko-spectra-effect", "xrite-spectralight-qc", "iso3664-p1-d50"]
 SAMPLES = [REPO / "examples" / "render" / "sample-colorchecker-moderate-red-glossy.yaml"]
+#: what the views' recording keeps: their light and the solution it came from
+VIEW_KINDS = ("patch_radiosity", "vertex_irradiance", "point_irradiance_1nm")
 #: relative difference tolerated by --check (float32 storage, thread order of sums)
 CHECK_RTOL = 1e-5
 
@@ -38,6 +42,8 @@ def record(booths) -> dict[str, np.ndarray]:
     """``{"kind/key.npy": array}`` of every table for ``booths``."""
     from lbscene.engine.files.disk_cache import recording_tables
     from lbscene.engine.files.load import load_document
+    from lbscene.engine.light.forward import ForwardModel
+    from lbscene.engine.truth.synthetic import a3_grid
     from lbscene.engine.scene.compile import compile_booth
     from lbscene.engine.scene.sample import SampleSpec
     from lbscene.runtimes.colour_bridge import srgb_display
@@ -57,8 +63,13 @@ def record(booths) -> dict[str, np.ndarray]:
                     scene = SceneBuilder(ir, graph, sample, srgb_display(), irradiance_memo=memo)
                     for name in scene.view_names:
                         scene.view(name)
-            print(f"{booth} {lighting}: {len(rec)} tables", flush=True)
-            out.update(rec)
+            # the views' own light, not the visibility behind it (thousands of receivers, ~8 MB each)
+            kept = {k: v for k, v in rec.items() if k.split("/")[0] in VIEW_KINDS}
+            with recording_tables() as rec:
+                ForwardModel(ir, lighting).illuminance_lx(a3_grid())
+            kept.update(rec)
+            print(f"{booth} {lighting}: {len(kept)} tables", flush=True)
+            out.update(kept)
     return out
 
 

@@ -942,7 +942,7 @@ class RadiosityTransport:
         return self.ctx.memo("bodyvis_rx", (P_rx, G > 0, polys, self._body_digest, self.blockers),
                              lambda: cached_array("gather_past_bodies", (P_rx, G > 0, polys, self.blockers),
                                                   self._body_sig + (GATHER_SUB, GATHER_FINE, NUDGE_MM),
-                                                  compute, shape=G.shape), limit=32)
+                                                  compute, shape=G.shape, shipped=True), limit=32)
 
     def _gather_visibility(self, P_rx, G) -> np.ndarray | None:
         """(M, P) fraction of each patch a receiver sees past the meshes (where ``G`` > 0).
@@ -999,7 +999,7 @@ class RadiosityTransport:
         def on_disk():
             return cached_array("gather_visibility", (P_rx, seen, polys, nrm, tris),
                                 (GATHER_SUB, GATHER_FINE, NUDGE_MM), compute,
-                                shape=seen.shape)
+                                shape=seen.shape, shipped=True)
 
         return self.ctx.memo("meshvis_rx", (P_rx, seen, polys, tris, (GATHER_SUB, GATHER_FINE)), on_disk,
                              limit=32)

@@ -60,6 +60,29 @@ def test_every_view_of_a_shipped_booth_reads_the_tables(booth, tmp_path, monkeyp
     assert not any(tmp_path.iterdir())          # read from the package, nothing copied to the cache
 
 
+@pytest.mark.parametrize("booth", SHIPPED)
+def test_the_first_compare_on_the_a3_grid_reads_the_tables(booth, monkeypatch):
+    """``compare`` on the seed's A3 grid starts with the tables: no form factors, no visibility
+    test of the grid's view of the patches (the direct light is computed, it is cheap)."""
+    from lbscene.engine.light import radiosity
+    from lbscene.engine.light.forward import ForwardModel
+    from lbscene.engine.scene.compile import compile_booth
+    from lbscene.engine.truth.synthetic import a3_grid
+
+    monkeypatch.setenv("LBSCENE_CACHE_DIR", "off")
+    monkeypatch.delenv("LBSCENE_SHIPPED_TABLES", raising=False)
+
+    def computed(*a, **k):
+        raise AssertionError(f"{booth}: computed; run scripts/make_tables.py")
+
+    for name in ("patch_form_factors", "_hidden_points", "pairs_near_bodies", "pyramids_clear_of"):
+        monkeypatch.setattr(radiosity, name, computed)
+    ir = compile_booth(REPO / "booths" / booth)
+    lighting = next(iter(ir.lighting))         # every lighting: scripts/make_tables.py --check (slow)
+    E = ForwardModel(ir, lighting).illuminance_lx(a3_grid())
+    assert E.shape == (55,) and np.all(E > 0)
+
+
 def test_the_tables_are_off_when_asked(monkeypatch):
     from lbscene.engine.files import disk_cache
 
