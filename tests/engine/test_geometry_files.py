@@ -58,3 +58,23 @@ def test_garbage_obj_is_a_located_error(minimal_booth):
         compile_booth(minimal_booth)
     d = exc.value.diagnostics[0]
     assert d.code == "LB203" and d.location.file == "bad.obj"
+
+
+@pytest.mark.parametrize("faces", [["1 2 3", "1 3 4", "2 4 3/7/1"],
+                                   ["1 2 3 4", "5 6 7 8", "1 5 8 4"],
+                                   ["1 2 3", "1 3 4 5", "5 6 7 8 1"]])
+def test_obj_triangles_are_trimeshs(faces, tmp_path):
+    """An OBJ of triangles or of quads is triangulated without trimesh, into the very arrays trimesh
+    gives (same vertices, same triangles in the same order); mixed polygons still go to trimesh."""
+    import trimesh
+
+    from lbscene.engine.scene.meshes import _mesh_from_obj
+
+    rng = np.random.default_rng(len(faces[0]))
+    pts = rng.uniform(-50.0, 50.0, (8, 3))
+    p = tmp_path / "m.obj"
+    p.write_text("o m\n" + "".join(f"v {x:.4f} {y:.4f} {z:.4f}\n" for x, y, z in pts)
+                 + "vt 0 0\n" * 8 + "".join(f"f {f}\n" for f in faces))
+    v, f = _mesh_from_obj(p, "m.obj")
+    ref = trimesh.load(str(p), file_type="obj", force="mesh", process=False)
+    np.testing.assert_array_equal(v[f], np.asarray(ref.vertices)[np.asarray(ref.faces)])
