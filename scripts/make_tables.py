@@ -9,7 +9,7 @@ each computation it would keep (:func:`lbscene.engine.files.disk_cache.recording
 patch radiosity of each lighting (read by every view, the web export and ``compare``), the light
 at the booth's vertices and at the sample's centre, and which parts of each patch the A3 grid's
 points see past the booth's meshes and bodies.  They are written as float32 ``.npy`` under
-``engine/tables/<kind>/<key>.npy``; tables no longer produced (an edited booth or model) are
+``engine/tables/<kind>-<key>.npy``; tables no longer produced (an edited booth or model) are
 removed.  Their keys hold the booth's content and the light model's code, so a table is only
 ever read for the booth and the code it was made from; a stale one is never used, and a missing
 one costs time, not accuracy.
@@ -39,7 +39,7 @@ CHECK_RTOL = 1e-5
 
 
 def record(booths) -> dict[str, np.ndarray]:
-    """``{"kind/key.npy": array}`` of every table for ``booths``."""
+    """``{"kind-key.npy": array}`` of every table for ``booths``."""
     from lbscene.engine.files.disk_cache import recording_tables
     from lbscene.engine.files.load import load_document
     from lbscene.engine.light.forward import ForwardModel
@@ -64,7 +64,7 @@ def record(booths) -> dict[str, np.ndarray]:
                     for name in scene.view_names:
                         scene.view(name)
             # the views' own light, not the visibility behind it (thousands of receivers, ~8 MB each)
-            kept = {k: v for k, v in rec.items() if k.split("/")[0] in VIEW_KINDS}
+            kept = {k: v for k, v in rec.items() if k.rsplit("-", 1)[0] in VIEW_KINDS}
             with recording_tables() as rec:
                 ForwardModel(ir, lighting).illuminance_lx(a3_grid())
             kept.update(rec)
@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     # tables are recorded, not read; the disk cache still speeds up the geometry
     os.environ.setdefault("LBSCENE_CACHE_DIR", tempfile.mkdtemp(prefix="lbscene-tables-"))
     tables = record(a.booths.split(","))
-    old = {str(p.relative_to(TABLES)) for p in TABLES.glob("*/*.npy")}
+    old = {p.name for p in TABLES.glob("*.npy")}
     if a.check:
         bad = sorted(old ^ set(tables))
         for name, arr in tables.items():
@@ -93,15 +93,10 @@ def main(argv=None) -> int:
         print("shipped tables current" if not bad else "shipped tables stale: " + ", ".join(bad))
         return 1 if bad else 0
     for name, arr in tables.items():
-        path = TABLES / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.save(path, np.asarray(arr, np.float32), allow_pickle=False)
+        np.save(TABLES / name, np.asarray(arr, np.float32), allow_pickle=False)
     for name in old - set(tables):
         (TABLES / name).unlink()
-    for d in TABLES.iterdir():
-        if d.is_dir() and not any(d.iterdir()):
-            d.rmdir()
-    total = sum(p.stat().st_size for p in TABLES.glob("*/*.npy"))
+    total = sum(p.stat().st_size for p in TABLES.glob("*.npy"))
     print(f"{len(tables)} tables, {total / 2 ** 20:.1f} MiB in {TABLES.relative_to(REPO)}")
     return 0
 

@@ -41,7 +41,7 @@ RUNTIME_FILES = {
     "engine/scene/usd_schema": ("lbscene/engine/scene/usd_schema", ["*.json", "*.usda"]),
     "engine/light/data/rough_slab": ("lbscene/engine/light/data/rough_slab", ["*.npz"]),
     "engine/spectra/data": ("lbscene/engine/spectra/data", ["*.npz"]),
-    "engine/tables": ("lbscene/engine/tables", ["*/*.npy"]),
+    "engine/tables": ("lbscene/engine/tables", ["*.npy"]),
     "runtimes/shaders": ("lbscene/runtimes/shaders", ["*.glsl", "*.vert", "*.frag"]),
     "runtimes/data": ("lbscene/runtimes/data", ["*.json"]),
     "booths": ("lbscene/booths", ["*/booth.yaml", "*/spectra/*.csv", "*/geometry/*"]),

@@ -70,11 +70,11 @@ _O_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
 _O_DIR = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 
 
-#: the shipped tables' folder (``kind/key.npy``, float32), inside the installed package
+#: the shipped tables' folder (``kind-key.npy``, float32), inside the installed package
 TABLES_DIR = Path(__file__).resolve().parents[1] / "tables"
 #: a shipped table is read only up to this size
 MAX_TABLE_BYTES = 64 * 2 ** 20
-#: while :func:`recording_tables` runs: ``{"kind/key.npy": array}`` of every shipped-table computation
+#: while :func:`recording_tables` runs: ``{"kind-key.npy": array}`` of every shipped-table computation
 _RECORD: dict | None = None
 
 
@@ -92,17 +92,17 @@ TABLE_KEY_DECIMALS = 4
 
 
 def table_entry_name(kind: str, arrays: tuple, params: tuple) -> str:
-    """``kind/key.npy``: where a computation's shipped table lies under :func:`tables_dir` (the
-    key of :func:`cached_array`'s, with float arrays rounded to :data:`TABLE_KEY_DECIMALS`)."""
+    """``kind-key.npy``: the file of a computation's shipped table in :func:`tables_dir` (the key
+    of :func:`cached_array`'s, with float arrays rounded to :data:`TABLE_KEY_DECIMALS`)."""
     def rounded(a):
         a = np.asarray(a)
         return np.round(a, TABLE_KEY_DECIMALS) + 0.0 if a.dtype.kind == "f" else a     # + 0.0: no −0
 
-    return f"{kind}/{_key(kind, tuple(rounded(a) for a in arrays), params)}.npy"
+    return f"{kind}-{_key(kind, tuple(rounded(a) for a in arrays), params)}.npy"
 
 
 class recording_tables:
-    """Context manager: collect ``{"kind/key.npy": result}`` of every ``shipped=True`` computation
+    """Context manager: collect ``{"kind-key.npy": result}`` of every ``shipped=True`` computation
     run inside it (cache and shipped tables bypassed: each is computed), for the script that
     writes the tables.
 
