@@ -644,6 +644,14 @@ class SceneBuilder:
             et[i, 4:8] = b.reshape(4, 4)
             prof = np.asarray(e["profile"], float)
             et[i, 8:8 + PROFILE_SAMPLES // 4] = prof.reshape(-1, 4)
+            # the band intensities in XYZ (the realtime schedule sums the highlights in XYZ)
+            et[i, 8 + PROFILE_SAMPLES // 4, :3] = w.T @ b
+        # the kinds present and whether any profile varies: #defines of sample.frag
+        kind_bits = {"sphere": 1, "tube": 2, "panel": 4}
+        emitter_kinds = 0
+        for e in ems:
+            emitter_kinds |= kind_bits[e["kind"]]
+        emitter_profiles = int(any(np.any(np.asarray(e["profile"], np.float32) != 1.0) for e in ems))
 
         # the illumination centre of the geometry (lamps' luminous centre), placed for the view
         illum = self._illumination_centre()
@@ -672,6 +680,8 @@ class SceneBuilder:
             "view.eye_mm": None,   # set per frame (camera)
             "view.illumination_centre_mm": np.asarray(illum, np.float32),
             "view.emitter_count": len(ems),
+            "view.emitter_kinds": emitter_kinds,
+            "view.emitter_profiles": emitter_profiles,
             "view.xyz_weights": xyz_weights,
             "sample.geometry_count": ng,
             "sample.roughness": float(sm.roughness),
