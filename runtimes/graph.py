@@ -404,10 +404,8 @@ LIB_COATING = "lib_coating.glsl"
 RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
 DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping",
                    "HIGHLIGHT_ROLLOFF": "display.highlight_rolloff"}
-DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_adaptation": "display.adaptation",
-                    "u_xyz_offset": "display.xyz_offset",
-                    "u_xyz_to_rgb": "display.xyz_to_rgb", "u_tone_params": "display.tone_params",
-                    "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
+DISPLAY_UNIFORMS = {"u_display_linear": "display.linear", "u_tone_params": "display.tone_params",
+                    "u_tone_lut_size": "display.tone_lut_size",
                     "u_highlight_knee": "display.highlight_knee", "u_highlight_max": "display.highlight_max"}
 #: the effect-coating inputs of the sample draw (runtimes/coating.py, sample.frag COATING 1)
 COATING_UNIFORMS = {"u_coating_spectra": "sample.coating_spectra", "u_coating_lobes": "sample.coating_lobes", "u_coating_alphas": "sample.coating_alphas",
@@ -607,6 +605,9 @@ _VALUES_DOC = {
     "display.tone_lut_size": "int, entries of tone_lut (inverse tone response, linear → drive)",
     "display.gamut_mapping": "int, 0 clip, 1 chroma (a #define)",
     "display.inv_y_span": "float, 1 / (white − black luminance) of the display, for the chroma mapping",
+    "display.linear": "mat4, the display model's affine part: (absolute XYZ, 1) → (linear channel values "
+                      "before clipping, y) = (xyz_to_rgb · (exposure · adaptation · XYZ − xyz_offset), "
+                      "(exposure · (adaptation · XYZ)_Y − xyz_offset_Y) · inv_y_span) (lib_display.glsl)",
     "dither.noise_size": "int, side of the blue-noise mask (a power of two)",
     "dither.amplitude": "float, 1: dithering on, 0: plain rounding",
 }

@@ -108,6 +108,31 @@ def perspective(fovy_deg: float, aspect: float, near: float, far: float) -> np.n
     return m
 
 
+def display_linear_matrix(exposure: float, adaptation, xyz_offset, xyz_to_rgb, inv_y_span: float) -> np.ndarray:
+    """The display model's affine part as one 4×4 matrix (``display.linear``, lib_display.glsl).
+
+    With display XYZ :math:`D = e\,A\,X` (exposure :math:`e`, chromatic adaptation :math:`A`,
+    absolute XYZ :math:`X`), offset :math:`o` (black + ambient), the matrix :math:`M` to linear
+    channel values and :math:`s = 1/(Y_w - Y_k)`:
+
+    .. math:: \begin{pmatrix} \ell \\ y \end{pmatrix} =
+              \begin{pmatrix} e\,M A & -M o \\ e\,s\,A_{Y\cdot} & -s\,o_Y \end{pmatrix}
+              \begin{pmatrix} X \\ 1 \end{pmatrix},
+              \quad \ell = M (D - o),\ y = s\,(D_Y - o_Y)
+
+    (rows of the result; the runtime uploads it column-major with :func:`_gl`).
+    """
+    a = float(exposure) * np.asarray(adaptation, float)
+    m = np.asarray(xyz_to_rgb, float)
+    o = np.asarray(xyz_offset, float)
+    out = np.zeros((4, 4))
+    out[:3, :3] = m @ a
+    out[:3, 3] = -(m @ o)
+    out[3, :3] = float(inv_y_span) * a[1]
+    out[3, 3] = -float(inv_y_span) * o[1]
+    return out
+
+
 def _gl(m: np.ndarray) -> np.ndarray:
     """Column-major float32 for glUniformMatrix*."""
     return np.ascontiguousarray(np.asarray(m, float).T, dtype=np.float32).ravel()
@@ -697,6 +722,7 @@ class SceneBuilder:
             "display.tone_lut_size": int(d.lut_texture().shape[1]),
             "display.gamut_mapping": int(d.gamut_mapping),
             "display.inv_y_span": float(d.inv_y_span),
+            "display.linear": _gl(display_linear_matrix(k, adapt, d.xyz_offset, d.xyz_to_rgb, d.inv_y_span)),
             "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
             "dither.amplitude": 1.0 if self.dither else 0.0,
         }
