@@ -109,7 +109,7 @@ def perspective(fovy_deg: float, aspect: float, near: float, far: float) -> np.n
 
 
 def display_linear_matrix(exposure: float, adaptation, xyz_offset, xyz_to_rgb, inv_y_span: float) -> np.ndarray:
-    """The display model's affine part as one 4×4 matrix (``display.linear``, lib_display.glsl).
+    r"""The display model's affine part as one 4×4 matrix (``display.linear``, lib_display.glsl).
 
     With display XYZ :math:`D = e\,A\,X` (exposure :math:`e`, chromatic adaptation :math:`A`,
     absolute XYZ :math:`X`), offset :math:`o` (black + ambient), the matrix :math:`M` to linear
@@ -120,7 +120,23 @@ def display_linear_matrix(exposure: float, adaptation, xyz_offset, xyz_to_rgb, i
               \begin{pmatrix} X \\ 1 \end{pmatrix},
               \quad \ell = M (D - o),\ y = s\,(D_Y - o_Y)
 
-    (rows of the result; the runtime uploads it column-major with :func:`_gl`).
+    Parameters
+    ----------
+    exposure
+        Absolute → display XYZ scale :math:`e` (``display.exposure``).
+    adaptation
+        (3, 3) chromatic adaptation :math:`A` (``display.adaptation``).
+    xyz_offset
+        XYZ :math:`o` of the display's black plus reflected ambient, cd/m².
+    xyz_to_rgb
+        (3, 3) display XYZ → linear channel values :math:`M`.
+    inv_y_span
+        :math:`s`, 1 / (white − black luminance) of the display, m²/cd.
+
+    Returns
+    -------
+    numpy.ndarray
+        (4, 4), row-major; the runtime uploads it column-major with :func:`_gl`.
     """
     a = float(exposure) * np.asarray(adaptation, float)
     m = np.asarray(xyz_to_rgb, float)
