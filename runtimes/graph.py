@@ -105,7 +105,7 @@ GRAPH_VERSION = 1
 GRAPH_FILENAME = "render_graph.json"
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: Texels per emitter row of the ``emitters`` data texture (see sample.frag).
-EMITTER_TEXELS = 24
+EMITTER_TEXELS = 25
 #: Samples of an emitter's angular profile f(θ), θ = 0…180°, stored in its row.
 PROFILE_SAMPLES = 64
 #: The sample sits this far above the platform/floor (avoids depth fighting).
@@ -404,10 +404,8 @@ LIB_COATING = "lib_coating.glsl"
 RESOLVE_LIBS = [LIB_SPECTRAL, LIB_DISPLAY, LIB_DITHER]
 DISPLAY_DEFINES = {"TONE_KIND": "display.tone_kind", "GAMUT_MAPPING": "display.gamut_mapping",
                    "HIGHLIGHT_ROLLOFF": "display.highlight_rolloff"}
-DISPLAY_UNIFORMS = {"u_exposure": "display.exposure", "u_adaptation": "display.adaptation",
-                    "u_xyz_offset": "display.xyz_offset",
-                    "u_xyz_to_rgb": "display.xyz_to_rgb", "u_tone_params": "display.tone_params",
-                    "u_tone_lut_size": "display.tone_lut_size", "u_inv_y_span": "display.inv_y_span",
+DISPLAY_UNIFORMS = {"u_display_linear": "display.linear", "u_tone_params": "display.tone_params",
+                    "u_tone_lut_size": "display.tone_lut_size",
                     "u_highlight_knee": "display.highlight_knee", "u_highlight_max": "display.highlight_max"}
 #: the effect-coating inputs of the sample draw (runtimes/coating.py, sample.frag COATING 1)
 COATING_UNIFORMS = {"u_coating_spectra": "sample.coating_spectra", "u_coating_lobes": "sample.coating_lobes", "u_coating_alphas": "sample.coating_alphas",
@@ -452,7 +450,8 @@ def _surface_draws(to_display: bool) -> list[dict]:
     sample_textures = {"u_sample_reflectance": "sample_reflectance", "u_emitters": "emitters",
                        "u_ltc_minv": "ltc_minv", "u_ltc_mag": "ltc_mag"}
     booth_extra: dict = {}
-    sample_extra: dict = {"defines": {"COATING": "sample.coating"}}
+    emitter_defines = {"EMITTER_KINDS": "view.emitter_kinds", "EMITTER_PROFILES": "view.emitter_profiles"}
+    sample_extra: dict = {"defines": dict(emitter_defines, COATING="sample.coating")}
     if to_display:
         # diffuse booth surfaces: bands → XYZ per vertex (surface.vert, VERTEX_XYZ 1), then
         # display and dither per pixel; the sample: everything per pixel
@@ -464,7 +463,7 @@ def _surface_draws(to_display: bool) -> list[dict]:
         sample_textures.update(RESOLVE_TEXTURES)
         booth_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1}, VERTEX_XYZ={"value": 1})}
         sample_extra = {"defines": dict(DISPLAY_DEFINES, SHADE_TO_DISPLAY={"value": 1},
-                                        COATING="sample.coating")}
+                                        COATING="sample.coating", **emitter_defines)}
 
     def booth(name, mesh, cull):
         return dict({"name": name, "mesh": mesh, "cull_back_faces": cull, "program": dict(booth_program),
@@ -557,6 +556,10 @@ _VALUES_DOC = {
     "view.eye_mm": "vec3, camera position (mm)",
     "view.illumination_centre_mm": "vec3, centre of the light defining the geometry, rotated",
     "view.emitter_count": "int, rows of the emitters texture",
+    "view.emitter_kinds": "int, the kinds among the emitters (bits: 1 sphere, 2 tube, 4 panel; a #define: "
+                          "sample.frag leaves out the highlight code of absent kinds)",
+    "view.emitter_profiles": "int, 1: some emitter's angular profile is not flat (0: sample.frag leaves "
+                             "out the profile lookup; a #define)",
     "view.xyz_weights": "mat4x3[4], XYZ (Y in cd/m²) per unit band radiance: 683·∫_band E·cmf dλ / E_band "
                         "for the spectral irradiance E at the sample (colour module's band weights when "
                         "available); bands 1 and 16 also take the light below 390 / above 710 nm",
@@ -602,6 +605,9 @@ _VALUES_DOC = {
     "display.tone_lut_size": "int, entries of tone_lut (inverse tone response, linear → drive)",
     "display.gamut_mapping": "int, 0 clip, 1 chroma (a #define)",
     "display.inv_y_span": "float, 1 / (white − black luminance) of the display, for the chroma mapping",
+    "display.linear": "mat4, the display model's affine part: (absolute XYZ, 1) → (linear channel values "
+                      "before clipping, y) = (xyz_to_rgb · (exposure · adaptation · XYZ − xyz_offset), "
+                      "(exposure · (adaptation · XYZ)_Y − xyz_offset_Y) · inv_y_span) (lib_display.glsl)",
     "dither.noise_size": "int, side of the blue-noise mask (a power of two)",
     "dither.amplitude": "float, 1: dithering on, 0: plain rounding",
 }
@@ -644,7 +650,8 @@ def build_render_graph(ir, lighting: str) -> dict[str, Any]:
                      "source": "view.emitters",
                      "layout": "row per emitter: 0 centre_mm+kind(0 sphere,1 tube,2 panel), 1 axis+half_length_mm, "
                                "2 aim+half_width_mm, 3 width_axis+0, 4..7 intensity bands (W/sr/nm), "
-                               "8..23 profile f(θ) at 64 angles 0..180°"},
+                               "8..23 profile f(θ) at 64 angles 0..180°, 24 XYZ of the intensity bands "
+                               "(view.xyz_weights: the realtime schedule sums the highlights in XYZ) + 0"},
         "ltc_minv": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.minv"},
         "ltc_mag": {"format": "rgba32f", "size": "ltc", "usage": "data", "source": "builtin:ltc_ggx.mag"},
         "sample_reflectance": {"format": "rgba32f", "size": ["sample.geometry_count", n_blocks + 1],

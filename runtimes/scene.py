@@ -108,6 +108,47 @@ def perspective(fovy_deg: float, aspect: float, near: float, far: float) -> np.n
     return m
 
 
+def display_linear_matrix(exposure: float, adaptation, xyz_offset, xyz_to_rgb, inv_y_span: float) -> np.ndarray:
+    r"""The display model's affine part as one 4×4 matrix (``display.linear``, lib_display.glsl).
+
+    With display XYZ :math:`D = e\,A\,X` (exposure :math:`e`, chromatic adaptation :math:`A`,
+    absolute XYZ :math:`X`), offset :math:`o` (black + ambient), the matrix :math:`M` to linear
+    channel values and :math:`s = 1/(Y_w - Y_k)`:
+
+    .. math:: \begin{pmatrix} \ell \\ y \end{pmatrix} =
+              \begin{pmatrix} e\,M A & -M o \\ e\,s\,A_{Y\cdot} & -s\,o_Y \end{pmatrix}
+              \begin{pmatrix} X \\ 1 \end{pmatrix},
+              \quad \ell = M (D - o),\ y = s\,(D_Y - o_Y)
+
+    Parameters
+    ----------
+    exposure
+        Absolute → display XYZ scale :math:`e` (``display.exposure``).
+    adaptation
+        (3, 3) chromatic adaptation :math:`A` (``display.adaptation``).
+    xyz_offset
+        XYZ :math:`o` of the display's black plus reflected ambient, cd/m².
+    xyz_to_rgb
+        (3, 3) display XYZ → linear channel values :math:`M`.
+    inv_y_span
+        :math:`s`, 1 / (white − black luminance) of the display, m²/cd.
+
+    Returns
+    -------
+    numpy.ndarray
+        (4, 4), row-major; the runtime uploads it column-major with :func:`_gl`.
+    """
+    a = float(exposure) * np.asarray(adaptation, float)
+    m = np.asarray(xyz_to_rgb, float)
+    o = np.asarray(xyz_offset, float)
+    out = np.zeros((4, 4))
+    out[:3, :3] = m @ a
+    out[:3, 3] = -(m @ o)
+    out[3, :3] = float(inv_y_span) * a[1]
+    out[3, 3] = -float(inv_y_span) * o[1]
+    return out
+
+
 def _gl(m: np.ndarray) -> np.ndarray:
     """Column-major float32 for glUniformMatrix*."""
     return np.ascontiguousarray(np.asarray(m, float).T, dtype=np.float32).ravel()
@@ -616,6 +657,14 @@ class SceneBuilder:
             et[i, 4:8] = b.reshape(4, 4)
             prof = np.asarray(e["profile"], float)
             et[i, 8:8 + PROFILE_SAMPLES // 4] = prof.reshape(-1, 4)
+            # the band intensities in XYZ (the realtime schedule sums the highlights in XYZ)
+            et[i, 8 + PROFILE_SAMPLES // 4, :3] = w.T @ b
+        # the kinds present and whether any profile varies: #defines of sample.frag
+        kind_bits = {"sphere": 1, "tube": 2, "panel": 4}
+        emitter_kinds = 0
+        for e in ems:
+            emitter_kinds |= kind_bits[e["kind"]]
+        emitter_profiles = int(any(np.any(np.asarray(e["profile"], np.float32) != 1.0) for e in ems))
 
         # the illumination centre of the geometry (lamps' luminous centre), placed for the view
         illum = self._illumination_centre()
@@ -644,6 +693,8 @@ class SceneBuilder:
             "view.eye_mm": None,   # set per frame (camera)
             "view.illumination_centre_mm": np.asarray(illum, np.float32),
             "view.emitter_count": len(ems),
+            "view.emitter_kinds": emitter_kinds,
+            "view.emitter_profiles": emitter_profiles,
             "view.xyz_weights": xyz_weights,
             "sample.geometry_count": ng,
             "sample.roughness": float(sm.roughness),
@@ -659,6 +710,7 @@ class SceneBuilder:
             "display.tone_lut_size": int(d.lut_texture().shape[1]),
             "display.gamut_mapping": int(d.gamut_mapping),
             "display.inv_y_span": float(d.inv_y_span),
+            "display.linear": _gl(display_linear_matrix(k, adapt, d.xyz_offset, d.xyz_to_rgb, d.inv_y_span)),
             "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
             "dither.amplitude": 1.0 if self.dither else 0.0,
         }

@@ -4,8 +4,9 @@
 // analysis and deferred schedules).
 //
 // SHADE_TO_DISPLAY 1 (the realtime schedule; include: lib_display.glsl, lib_dither.glsl):
-// the vertex shader has already taken the bands to XYZ (surface.vert with VERTEX_XYZ 1);
-// the display model and the dither finish the pixel here and the 8-bit colour is written.
+// the vertex shader has already taken the bands to XYZ and through the display model's affine
+// part (surface.vert with VERTEX_XYZ 1); the rest of the display model and the dither finish
+// the pixel here and the 8-bit colour is written.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
@@ -15,12 +16,12 @@ precision highp sampler2D;
 #endif
 
 #if SHADE_TO_DISPLAY
-in vec3 v_xyz;
+in vec4 v_linear;
 
 layout(location = 0) out vec4 o_rgba;
 
 void main() {
-    o_rgba = vec4(dither8(display_drive(v_xyz).rgb, ivec2(gl_FragCoord.xy)), 1.0);
+    o_rgba = vec4(dither8(display_drive_linear(v_linear).rgb, ivec2(gl_FragCoord.xy)), 1.0);
 }
 
 #else

@@ -4,6 +4,11 @@
 //                                                      the identity: lbscene.engine.colour.adaptation)
 //   linear RGB   = M · (display XYZ − offset)          offset: black level + reflected ambient
 //   drive        = tone⁻¹(linear RGB)                  sRGB piecewise, GOG or a LUT
+// The steps up to linear RGB, with the relative luminance y = (display Y − offset Y)/(Y_white −
+// Y_black) that the roll-off and the gamut mapping need, are one affine map of XYZ, composed on
+// the CPU: (linear RGB, y) = u_display_linear · (XYZ, 1) (display_linear).  Being affine, it may
+// be applied per vertex and interpolated (surface.vert VERTEX_XYZ 1): display_drive_linear
+// finishes the pixel from there.
 // Out of gamut (a linear channel outside 0..1): GAMUT_MAPPING 1 (default) moves the colour
 // toward the display's grey of the same luminance until it fits (lbscene.engine.colour.
 // display_model's 'chroma' mapping), 0 clips each channel; the largest excess is returned
@@ -24,14 +29,10 @@ precision highp sampler2D;
 #define HIGHLIGHT_ROLLOFF 0         // 1: luminance above u_highlight_knee × white rolled off (glints)
 #endif
 
-uniform float u_exposure;
-uniform mat3 u_adaptation;          // XYZ under the lighting → corresponding XYZ under the display white
-uniform vec3 u_xyz_offset;
-uniform mat3 u_xyz_to_rgb;
+uniform mat4 u_display_linear;      // (XYZ, 1) → (linear RGB, y): exposure, adaptation, offset, M
 uniform vec4 u_tone_params[3];      // GOG per channel: (gain, offset, gamma, 0): L = (gain·d + offset)^gamma
 uniform sampler2D u_tone_lut;       // (size × 1): drive for linear value i/(size − 1), per channel
 uniform int u_tone_lut_size;
-uniform float u_inv_y_span;         // 1 / (Y_white − Y_black) of the display, cd/m²
 uniform float u_highlight_knee;     // HIGHLIGHT_ROLLOFF: start of the roll-off (fraction of white)
 uniform float u_highlight_max;      // HIGHLIGHT_ROLLOFF: luminance (× white) brought to white
 
@@ -66,24 +67,29 @@ float lut_inverse(float l, int channel) {
     return mix(a, b, t);
 }
 
-// Absolute XYZ (Y in cd·m⁻²) → (drive values 0..1, out-of-gamut excess ≥ 0).
-vec4 display_drive(vec3 xyz_abs) {
-    vec3 xyz = (u_adaptation * xyz_abs) * u_exposure;
+// Absolute XYZ (Y in cd·m⁻²) → (linear RGB before clipping, relative luminance y).
+vec4 display_linear(vec3 xyz_abs) {
+    return u_display_linear * vec4(xyz_abs, 1.0);
+}
+
+// (linear RGB, y) of display_linear → (drive values 0..1, out-of-gamut excess ≥ 0).
+vec4 display_drive_linear(vec4 lin_y) {
 #if HIGHLIGHT_ROLLOFF == 1
     {
         // a glint above the display's white: its luminance rolled off, its chromaticity kept
-        float y = (xyz.y - u_xyz_offset.y) * u_inv_y_span;
+        // (display XYZ − offset scaled by y'/y: linear RGB and y scale alike)
+        float y = lin_y.w;
         if (y > u_highlight_knee) {
-            xyz = u_xyz_offset + (xyz - u_xyz_offset) * (highlight_rolloff(y) / y);
+            lin_y *= highlight_rolloff(y) / y;
         }
     }
 #endif
-    vec3 lin = u_xyz_to_rgb * (xyz - u_xyz_offset);
+    vec3 lin = lin_y.rgb;
     float excess = max(max(max(-lin.r, -lin.g), -lin.b), max(max(lin.r, lin.g), lin.b) - 1.0);
 #if GAMUT_MAPPING == 1
     if (excess > 1e-6) {
         // chroma mapping: toward the grey of the same luminance until every channel fits
-        float g = clamp((xyz.y - u_xyz_offset.y) * u_inv_y_span, 0.0, 1.0);
+        float g = clamp(lin_y.w, 0.0, 1.0);
         vec3 diff = lin - vec3(g);
         float s = 1.0;
         if (lin.r > 1.0) { s = min(s, (1.0 - g) / diff.r); }
@@ -107,4 +113,9 @@ vec4 display_drive(vec3 xyz_abs) {
     vec3 d = vec3(srgb_encode(lin.r), srgb_encode(lin.g), srgb_encode(lin.b));
 #endif
     return vec4(clamp(d, 0.0, 1.0), max(excess, 0.0));
+}
+
+// Absolute XYZ (Y in cd·m⁻²) → (drive values 0..1, out-of-gamut excess ≥ 0).
+vec4 display_drive(vec3 xyz_abs) {
+    return display_drive_linear(display_linear(xyz_abs));
 }

@@ -5,7 +5,13 @@
 // GGX highlights of the emitters (tubes as line lights of finite width, panels and lamp
 // bulbs as area lights) by linearly transformed cosines (Heitz et al. 2016), with the
 // project's own fitted tables (runtimes/ltc.py) and Schlick's Fresnel.
-// SHADE_TO_DISPLAY: as in booth.frag (0: four RGBA32F targets; 1: 8-bit display colour).
+// SHADE_TO_DISPLAY: as in booth.frag (0: four RGBA32F targets; 1: 8-bit display colour; the
+// highlights are then summed in XYZ, from each emitter's XYZ the CPU computed, instead of in 16
+// bands: the same sum, since spectral → XYZ is linear).
+// EMITTER_KINDS (bits: 1 sphere, 2 tube, 4 panel) and EMITTER_PROFILES (0: every emitter's
+// angular profile is flat) are the view's emitters (values view.emitter_kinds and
+// view.emitter_profiles): the code of absent kinds and of flat profiles is left out (a CPU
+// rasteriser runs every side of a branch that its lanes do not skip together).
 // COATING 1 (a sample with effect_coating): the radiance the vertex stage computed from the flop
 // BRDF fitted to the measured geometries with every lamp integrated over its extent
 // (lib_coating.glsl, surface.vert), and, with flakes, sparkle (Poisson counts of glinting flakes
@@ -21,6 +27,12 @@ precision highp sampler2D;
 #ifndef COATING
 #define COATING 0
 #endif
+#ifndef EMITTER_KINDS
+#define EMITTER_KINDS 7
+#endif
+#ifndef EMITTER_PROFILES
+#define EMITTER_PROFILES 1
+#endif
 
 in vec3 v_position_mm;
 in vec3 v_normal;
@@ -35,7 +47,7 @@ uniform sampler2D u_sample_reflectance;  // (geometries × 5): rows 0..3 band bl
 uniform int u_sample_geometry_count;
 uniform vec3 u_eye_mm;
 uniform vec3 u_illumination_mm;          // light that defines the measurement geometry
-uniform sampler2D u_emitters;            // (24 × emitters), layout in runtimes/graph.py
+uniform sampler2D u_emitters;            // (25 × emitters), layout in runtimes/graph.py
 uniform int u_emitter_count;
 uniform sampler2D u_ltc_minv;            // (size × size): x = sqrt(1 − cos θv), y = roughness
 uniform sampler2D u_ltc_mag;
@@ -70,6 +82,7 @@ const float PI = 3.141592653589793;
 const float INV_PI = 0.31830988618379067;
 const int PROFILE_LAST = 63;            // PROFILE_SAMPLES - 1
 const int PROFILE_TEXEL = 8;
+const int XYZ_TEXEL = 24;               // the emitter's band intensities in XYZ (SHADE_TO_DISPLAY)
 // (integer / and % are avoided: CPUs do not vectorise integer division)
 
 // ---------------------------------------------------------------- measured geometries
@@ -86,6 +99,13 @@ float aspecular_deg(vec3 P, vec3 N, vec3 V) {
 
 void reflectance_at(float asp, out vec4 r0, out vec4 r1, out vec4 r2, out vec4 r3) {
     int n = u_sample_geometry_count;
+    if (n < 2) {
+        r0 = texelFetch(u_sample_reflectance, ivec2(0, 0), 0);
+        r1 = texelFetch(u_sample_reflectance, ivec2(0, 1), 0);
+        r2 = texelFetch(u_sample_reflectance, ivec2(0, 2), 0);
+        r3 = texelFetch(u_sample_reflectance, ivec2(0, 3), 0);
+        return;
+    }
     int i0 = 0;
     int i1 = 0;
     float t = 0.0;
@@ -125,49 +145,56 @@ vec4 ltc_fetch(sampler2D table, float roughness, float cos_theta) {
     return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
 }
 
-// ∫ over the great arc a→b of the edge term of Lambert's formula (z component).
+// ∫ over the great arc a→b (unit vectors) of the edge term of Lambert's formula (z component):
+// (a × b)_z · θ/sin θ with cos θ = a·b.  θ/sin θ = acos(y)/√(1 − y²) is a rational function of
+// y = |a·b| on [0, 1] (relative error < 1.4e-6, fitted by least squares; π/2 at y = 0, 1 at
+// y = 1), and for a·b < 0, acos(−y) = π − acos(y) gives π/√(1 − y²) minus it: no atan, which
+// CPU rasterisers evaluate as a long polynomial.
 float edge_integral(vec3 a, vec3 b) {
-    vec3 c = cross(a, b);
-    float s = length(c);
-    return s > 1e-7 ? c.z * atan(s, dot(a, b)) / s : 0.0;
+    float x = dot(a, b);
+    float y = abs(x);
+    float r = (5.4516069 + (3.1335957 + 0.0895909 * y) * y) / (3.4706053 + (4.2041799 + y) * y);
+    float theta_over_sin = x >= 0.0 ? r : PI * inversesqrt(max(1.0 - x * x, 1e-7)) - r;
+    return cross(a, b).z * theta_over_sin;
 }
 
-// Integral of the clamped cosine over the quad transformed by minv (quad given relative
-// to the shading point, wound counter-clockwise as seen from it; the back side gives 0).
-float ltc_quad(mat3 minv, vec3 q0, vec3 q1, vec3 q2, vec3 q3) {
-    vec3 p[4] = vec3[4](minv * q0, minv * q1, minv * q2, minv * q3);
-    bvec4 above = greaterThanEqual(vec4(p[0].z, p[1].z, p[2].z, p[3].z), vec4(0.0));
+// The part of the edge a→b above the horizon z = 0 (unit ends; its edge term, 0 when the edge
+// is wholly below): an end below is moved to where the edge crosses the horizon, and that
+// crossing is recorded as where the polygon's boundary leaves the upper half (a above) or
+// comes back into it (b above).
+float clipped_edge(vec3 a, vec3 b, bool a_up, bool b_up, inout vec3 leave, inout vec3 enter) {
+    float dz = a.z - b.z;
+    vec3 m = mix(a, b, a.z / (dz != 0.0 ? dz : 1.0));
+    m *= inversesqrt(max(dot(m, m), 1e-30));
+    leave = a_up && !b_up ? m : leave;
+    enter = !a_up && b_up ? m : enter;
+    float e = edge_integral(a_up ? a : m, b_up ? b : m);
+    return a_up || b_up ? e : 0.0;
+}
+
+// Integral of the clamped cosine over the quad transformed by minv (the quad c ± a ± s relative
+// to the shading point, wound counter-clockwise as seen from it; the back side gives 0).  The
+// quad is clipped to the horizon without building the clipped polygon: each edge contributes
+// its part above the horizon and the horizon arc from the crossing where the boundary leaves
+// the upper half to the one where it comes back closes the polygon (a convex quad crosses the
+// horizon twice or not at all; with no crossing that arc is between two zero vectors: 0).
+// Branch-free, so SIMD lanes that straddle the horizon differently stay together.
+float ltc_quad(mat3 minv, vec3 c, vec3 a, vec3 s) {
+    c = minv * c;                             // the transform is linear: three products, not four
+    a = minv * a;
+    s = minv * s;
+    vec3 p0 = normalize(c - a - s), p1 = normalize(c + a - s), p2 = normalize(c + a + s),
+         p3 = normalize(c - a + s);
+    bvec4 above = greaterThanEqual(vec4(p0.z, p1.z, p2.z, p3.z), vec4(0.0));
     if (!any(above)) {
-        return 0.0;                           // wholly below the horizon: nothing to clip
+        return 0.0;                           // wholly below the horizon
     }
-    if (all(above)) {
-        // wholly above: the clipped polygon is the quad itself; the same sum without the
-        // clipping's dynamically indexed array (slow on CPU rasterisers)
-        vec3 a = normalize(p[0]), b = normalize(p[1]), c = normalize(p[2]), d = normalize(p[3]);
-        float s4 = edge_integral(a, b) + edge_integral(b, c) + edge_integral(c, d) + edge_integral(d, a);
-        return max(-s4, 0.0) * (0.5 * INV_PI);
-    }
-    vec3 c[6];
-    int n = 0;
-    for (int i = 0; i < 4; i++) {
-        vec3 a = p[i];
-        vec3 b = p[(i + 1) & 3];
-        if (a.z >= 0.0) {
-            c[n] = a;
-            n++;
-        }
-        if ((a.z >= 0.0) != (b.z >= 0.0)) {
-            c[n] = mix(a, b, a.z / (a.z - b.z));
-            n++;
-        }
-    }
-    if (n < 3) {
-        return 0.0;
-    }
-    float sum = 0.0;
-    for (int i = 0; i < n; i++) {
-        sum += edge_integral(normalize(c[i]), normalize(c[i + 1 < n ? i + 1 : 0]));
-    }
+    vec3 leave = vec3(0.0), enter = vec3(0.0);
+    float sum = clipped_edge(p0, p1, above.x, above.y, leave, enter)
+              + clipped_edge(p1, p2, above.y, above.z, leave, enter)
+              + clipped_edge(p2, p3, above.z, above.w, leave, enter)
+              + clipped_edge(p3, p0, above.w, above.x, leave, enter);
+    sum += edge_integral(leave, enter);
     return max(-sum, 0.0) * (0.5 * INV_PI);
 }
 
@@ -184,66 +211,108 @@ float emitter_profile(int row, float theta) {
     return mix(a, b, x - float(i));
 }
 
-// GGX highlights of every emitter (LTC), added to the four band blocks.
-void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l2, inout vec4 l3) {
+// The emitter's quad as LTC sees it from P (centre c, half extents a and s; w: emitter → P)
+// and its area; false where it shows no emitting side.
+bool tube_quad(vec3 w, vec4 e1, vec4 e2, out vec3 a, out vec3 s, out float area_mm2) {
+    // a quad along the axis facing P.  Lambertian cylinder: I = I_ref·sin θ over a projected
+    // area 2rℓ·sin θ, so its radiance is I_ref / 2rℓ in every direction (engine/light/emitters.py)
+    s = cross(w, e1.xyz);
+    float sl = length(s);
+    a = e1.xyz * e1.w;
+    s = s * (e2.w / max(sl, 1e-4));
+    area_mm2 = 4.0 * e1.w * e2.w;
+    return sl >= 1e-4;
+}
+
+bool panel_quad(int e, vec3 w, vec4 e1, vec4 e2, out vec3 a, out vec3 s, out float area_mm2) {
+    // emitting toward aim; Lambertian rectangle: radiance I_ref / A
+    a = e1.xyz * e1.w;
+    s = emitter_texel(e, 3).xyz * e2.w;
+    area_mm2 = 4.0 * e1.w * e2.w;
+    return dot(w, e2.xyz) > 0.0;
+}
+
+bool sphere_quad(vec3 w, vec4 e2, out vec3 a, out vec3 s, out float area_mm2) {
+    // a facing square of area π r²
+    vec3 ax = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+    a = ax * e2.w;
+    s = cross(w, ax) * e2.w;
+    area_mm2 = 4.0 * e2.w * e2.w;
+    return true;
+}
+
+// Emitter e's highlight at P per unit of its band intensities: the LTC integral of the lobe over
+// its quad times its radiance per unit intensity toward P (the profile's modulation / area, m⁻²).
+float emitter_highlight(int e, vec3 P, mat3 minv) {
+    vec4 e0 = emitter_texel(e, 0);
+    vec4 e1 = emitter_texel(e, 1);
+    vec4 e2 = emitter_texel(e, 2);
+    vec3 w = normalize(P - e0.xyz);          // emitter → shading point
+    vec3 a, s;
+    float area_mm2;
+#if EMITTER_KINDS == 2
+    bool seen = tube_quad(w, e1, e2, a, s, area_mm2);
+#elif EMITTER_KINDS == 4
+    bool seen = panel_quad(e, w, e1, e2, a, s, area_mm2);
+#elif EMITTER_KINDS == 1
+    bool seen = sphere_quad(w, e2, a, s, area_mm2);
+#else
+    bool seen;
+    int kind = int(e0.w + 0.5);
+    if (kind == 1) {
+        seen = tube_quad(w, e1, e2, a, s, area_mm2);
+    } else if (kind == 2) {
+        seen = panel_quad(e, w, e1, e2, a, s, area_mm2);
+    } else {
+        seen = sphere_quad(w, e2, a, s, area_mm2);
+    }
+#endif
+    if (!seen) {
+        return 0.0;
+    }
+    float form = ltc_quad(minv, e0.xyz - P, a, s);
+#if EMITTER_PROFILES
+    float theta = acos(clamp(dot(w, e2.xyz), -1.0, 1.0));
+    form *= emitter_profile(e, theta);
+#endif
+    return form / (area_mm2 * 1e-6);
+}
+
+// The LTC frame at P: minv (world → the lobe's cosine space) and the lobe's magnitude
+// (Fresnel, the specular weight).
+float ltc_frame(vec3 N, vec3 V, out mat3 minv) {
     float cos_v = clamp(dot(N, V), 1e-4, 1.0);
     vec4 t1 = ltc_fetch(u_ltc_minv, u_roughness, cos_v);
     vec4 t2 = ltc_fetch(u_ltc_mag, u_roughness, cos_v);
-    mat3 minv = mat3(vec3(t1.x, 0.0, t1.y), vec3(0.0, 1.0, 0.0), vec3(t1.z, 0.0, t1.w));
+    minv = mat3(vec3(t1.x, 0.0, t1.y), vec3(0.0, 1.0, 0.0), vec3(t1.z, 0.0, t1.w));
     vec3 T1 = V - N * dot(V, N);
     T1 = length(T1) > 1e-5 ? normalize(T1)
                            : normalize(cross(N, abs(N.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0)));
     vec3 T2 = cross(N, T1);
     minv = minv * transpose(mat3(T1, T2, N));
-    float lobe = (u_f0 * t2.x + (1.0 - u_f0) * t2.y) * u_specular_weight;
+    return (u_f0 * t2.x + (1.0 - u_f0) * t2.y) * u_specular_weight;
+}
 
+#if SHADE_TO_DISPLAY
+// GGX highlights of every emitter (LTC) in XYZ: Σ_e k_e · XYZ_e, with XYZ_e the emitter's band
+// intensities taken to XYZ on the CPU (the view's band weights, as spectral_to_xyz).
+vec3 specular_xyz(vec3 P, vec3 N, vec3 V) {
+    mat3 minv;
+    float lobe = ltc_frame(N, V, minv);
+    vec3 xyz = vec3(0.0);
+    for (int e = 0; e < u_emitter_count; e++) {
+        xyz += emitter_highlight(e, P, minv) * emitter_texel(e, XYZ_TEXEL).xyz;
+    }
+    return lobe * xyz;
+}
+#else
+// GGX highlights of every emitter (LTC), added to the four band blocks.
+void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l2, inout vec4 l3) {
+    mat3 minv;
+    float lobe = ltc_frame(N, V, minv);
     vec4 s0 = vec4(0.0), s1 = vec4(0.0), s2 = vec4(0.0), s3 = vec4(0.0);
     for (int e = 0; e < u_emitter_count; e++) {
-        vec4 e0 = emitter_texel(e, 0);
-        vec4 e1 = emitter_texel(e, 1);
-        vec4 e2 = emitter_texel(e, 2);
-        vec3 c = e0.xyz;
-        int kind = int(e0.w + 0.5);
-        vec3 w = normalize(P - c);            // emitter → shading point
-        float hl = e1.w;
-        float hw = e2.w;
-        vec3 a;
-        vec3 s;
-        float area_mm2;
-        if (kind == 1) {                      // tube: a quad along the axis facing P
-            s = cross(w, e1.xyz);
-            float sl = length(s);
-            if (sl < 1e-4) {
-                continue;
-            }
-            a = e1.xyz * hl;
-            s = s / sl * hw;
-            // Lambertian cylinder: I = I_ref·sin θ over a projected area 2rℓ·sin θ, so its
-            // radiance is I_ref / 2rℓ in every direction (engine/light/emitters.py)
-            area_mm2 = 4.0 * hl * hw;
-        } else if (kind == 2) {               // panel, emitting toward aim
-            float ca = dot(w, e2.xyz);
-            if (ca <= 0.0) {
-                continue;
-            }
-            a = e1.xyz * hl;
-            s = emitter_texel(e, 3).xyz * hw;
-            area_mm2 = 4.0 * hl * hw;         // Lambertian rectangle: radiance I_ref / A
-        } else {                              // sphere: a facing square of area π r²
-            vec3 ax = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
-            a = ax * hw;
-            s = cross(w, ax) * hw;
-            area_mm2 = 4.0 * hw * hw;
-        }
-        vec3 q = c - P;
-        float form = ltc_quad(minv, q - a - s, q + a - s, q + a + s, q - a + s);
-        if (form <= 0.0) {
-            continue;
-        }
-        // emitter radiance toward P: its own radiance I_ref / A times the profile's modulation
-        // (W·sr⁻¹·m⁻²·nm⁻¹)
-        float theta = acos(clamp(dot(w, e2.xyz), -1.0, 1.0));
-        float k = form * emitter_profile(e, theta) / (area_mm2 * 1e-6);
+        float k = emitter_highlight(e, P, minv);
         s0 += k * emitter_texel(e, 4);
         s1 += k * emitter_texel(e, 5);
         s2 += k * emitter_texel(e, 6);
@@ -254,6 +323,7 @@ void specular(vec3 P, vec3 N, vec3 V, inout vec4 l0, inout vec4 l1, inout vec4 l
     l2 += lobe * s2;
     l3 += lobe * s3;
 }
+#endif
 
 #if COATING
 // ---------------------------------------------------------------- effect coating
@@ -354,18 +424,26 @@ void main() {
     coating(l0, l1, l2, l3);
 #else
     vec4 r0, r1, r2, r3;
-    reflectance_at(aspecular_deg(P, N, V), r0, r1, r2, r3);
+    float asp = 0.0;
+    if (u_sample_geometry_count > 1) {      // one measured geometry: no angle to interpolate in
+        asp = aspecular_deg(P, N, V);
+    }
+    reflectance_at(asp, r0, r1, r2, r3);
     vec4 l0 = r0 * v_irradiance0 * INV_PI;
     vec4 l1 = r1 * v_irradiance1 * INV_PI;
     vec4 l2 = r2 * v_irradiance2 * INV_PI;
     vec4 l3 = r3 * v_irradiance3 * INV_PI;
 #endif
+#if SHADE_TO_DISPLAY
+    vec3 xyz = spectral_to_xyz(l0, l1, l2, l3);
+    if (u_specular_weight > 0.0 && u_emitter_count > 0) {
+        xyz += specular_xyz(P, N, V);
+    }
+    o_rgba = vec4(dither8(display_drive(xyz).rgb, ivec2(gl_FragCoord.xy)), 1.0);
+#else
     if (u_specular_weight > 0.0 && u_emitter_count > 0) {
         specular(P, N, V, l0, l1, l2, l3);
     }
-#if SHADE_TO_DISPLAY
-    o_rgba = vec4(dither8(display_drive(spectral_to_xyz(l0, l1, l2, l3)).rgb, ivec2(gl_FragCoord.xy)), 1.0);
-#else
     o_radiance0 = l0;
     o_radiance1 = l1;
     o_radiance2 = l2;

@@ -4,10 +4,13 @@
 // fragment shaders, which interpolate it across the triangle.
 //
 // VERTEX_XYZ 1 (the realtime schedule's diffuse booth surfaces; include: lib_spectral.glsl):
-// the diffuse radiance ρ_b·E_b/π of the vertex's 16 bands is taken to XYZ here and XYZ is
-// interpolated instead.  Radiance, and so XYZ, is linear in the irradiance and the material
-// is constant over a triangle, so interpolating XYZ gives the XYZ of the interpolated bands:
-// the same image for 3 varyings instead of 16.
+// the diffuse radiance ρ_b·E_b/π of the vertex's 16 bands is taken to XYZ here, and on through
+// the display model's affine part (u_display_linear, lib_display.glsl: exposure, adaptation,
+// offset, matrix to linear channel values, relative luminance), and that is interpolated
+// instead.  Radiance, and so XYZ and any affine map of it, is linear in the irradiance and the
+// material is constant over a triangle, so interpolating it gives the value of the
+// interpolated bands: the same image for 4 varyings instead of 16, and two matrix products
+// per vertex instead of per pixel.
 //
 // COATING 1 (the sample draw of an effect coating; vertex_include: lib_coating.glsl): the
 // v_irradiance blocks carry the coating's smooth radiance (W·sr⁻¹·m⁻²·nm⁻¹) instead, with the
@@ -37,7 +40,8 @@ uniform mat4 u_model;   // rigid transform (identity when geometry is placed on 
 
 #if VERTEX_XYZ
 uniform sampler2D u_materials;   // row = material index, texel k = bands 4k..4k+3
-out vec3 v_xyz;
+uniform mat4 u_display_linear;   // (XYZ, 1) → (linear channel values, y): lib_display.glsl
+out vec4 v_linear;
 #else
 out vec3 v_position_mm;
 out vec3 v_normal;
@@ -62,10 +66,11 @@ void main() {
 #if VERTEX_XYZ
     int m = int(a_material + 0.5);
     const float INV_PI = 0.31830988618379067;
-    v_xyz = spectral_to_xyz(texelFetch(u_materials, ivec2(0, m), 0) * a_irradiance0 * INV_PI,
-                            texelFetch(u_materials, ivec2(1, m), 0) * a_irradiance1 * INV_PI,
-                            texelFetch(u_materials, ivec2(2, m), 0) * a_irradiance2 * INV_PI,
-                            texelFetch(u_materials, ivec2(3, m), 0) * a_irradiance3 * INV_PI);
+    vec3 xyz = spectral_to_xyz(texelFetch(u_materials, ivec2(0, m), 0) * a_irradiance0 * INV_PI,
+                               texelFetch(u_materials, ivec2(1, m), 0) * a_irradiance1 * INV_PI,
+                               texelFetch(u_materials, ivec2(2, m), 0) * a_irradiance2 * INV_PI,
+                               texelFetch(u_materials, ivec2(3, m), 0) * a_irradiance3 * INV_PI);
+    v_linear = u_display_linear * vec4(xyz, 1.0);
 #else
     v_position_mm = p.xyz;
     v_normal = mat3(u_model) * a_normal;

@@ -193,10 +193,12 @@ def _rolloff_drive(ctx, xyz, rolloff):
     tex = ctx.texture((n, 1), 4, np.c_[xyz, np.ones(n)].astype("f4").tobytes(), dtype="f4")
     tex.filter = (ctx.NEAREST, ctx.NEAREST)
     tex.use(0)
-    vals = {"u_xyz": 0, "u_xyz_to_rgb": tuple(u["xyz_to_rgb_column_major"]), "u_xyz_offset": tuple(u["xyz_offset"]),
-            "u_exposure": 1.0, "u_adaptation": (1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0),
+    from lbscene.runtimes.scene import _gl, display_linear_matrix
+
+    linear = display_linear_matrix(1.0, np.eye(3), u["xyz_offset"], u["xyz_to_rgb"], u["inv_y_span"])
+    vals = {"u_xyz": 0, "u_display_linear": tuple(_gl(linear)),
             "u_tone_params": [tuple(p) for p in u["tone_params"]], "u_tone_lut_size": 2,
-            "u_inv_y_span": u["inv_y_span"], "u_highlight_knee": HIGHLIGHT_KNEE, "u_highlight_max": HIGHLIGHT_MAX}
+            "u_highlight_knee": HIGHLIGHT_KNEE, "u_highlight_max": HIGHLIGHT_MAX}
     for k, v in vals.items():
         if k in prog:
             prog[k].value = v

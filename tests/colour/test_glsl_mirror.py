@@ -53,11 +53,13 @@ def _run(ctx, model, xyz):
     lut_tex.filter = (ctx.NEAREST, ctx.NEAREST)
     tex.use(0)
     lut_tex.use(1)
-    values = {"u_xyz": 0, "u_tone_lut": 1, "u_xyz_to_rgb": tuple(u["xyz_to_rgb_column_major"]),
-              "u_xyz_offset": tuple(u["xyz_offset"]), "u_exposure": 1.0,
-              "u_adaptation": (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),   # adaptation: identity
+    from lbscene.runtimes.scene import _gl, display_linear_matrix
+
+    # exposure 1, adaptation: identity
+    linear = display_linear_matrix(1.0, np.eye(3), u["xyz_offset"], u["xyz_to_rgb"], u["inv_y_span"])
+    values = {"u_xyz": 0, "u_tone_lut": 1, "u_display_linear": tuple(_gl(linear)),
               "u_tone_params": [tuple(p) for p in u["tone_params"]],
-              "u_tone_lut_size": max(u["tone_lut_size"], 2), "u_inv_y_span": u["inv_y_span"]}
+              "u_tone_lut_size": max(u["tone_lut_size"], 2)}
     for k, v in values.items():
         if k in prog:
             prog[k].value = v

@@ -134,7 +134,12 @@ def test_control_without_a_hidden_effect_says_none(booth, tmp_path, known):
     ("interreflection", False), ("diffuser", False), ("spectral_filter", False),
     ("detector_cosine_error", False),
     # with the lamp output known, the level mismatch names the rest
-    ("angular_profile", True), ("interreflection", True), ("diffuser", True),
+    ("angular_profile", True), ("interreflection", True),
+    # the slowest case (every refit with the plate solves the inter-reflection anew): the diffuser
+    # stays in the default suite with the output fitted (above; the weaker layout) and with
+    # inter-reflection (test_two_hidden_effects_are_named_together), the known-output layout with
+    # the six other effects here
+    pytest.param("diffuser", True, marks=pytest.mark.slow),
     ("aperture_occlusion", True), ("spectral_filter", True), ("detector_cosine_error", True),
     ("reflector", True),
 ], ids=lambda v: v if isinstance(v, str) else ("known" if v else "fitted"))

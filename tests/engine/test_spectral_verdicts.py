@@ -146,13 +146,26 @@ DIPS = [  # (σ nm, depth, centre nm, noise %)
 ]
 
 
-@pytest.mark.parametrize("sigma_nm,depth,centre_nm,noise", DIPS)
-def test_an_undeclared_dip_is_a_filter_at_the_resolution_the_data_choose(sigma_nm, depth, centre_nm, noise,
-                                                                         tmp_path):
+@pytest.fixture(scope="module")
+def narrow_dip(tmp_path_factory):
+    """The narrow dip (σ 15 nm, depth 0.25 at 560 nm, 1 % noise) and its comparison, shared by the
+    test of the dip's resolution and the test that pastes the fitted filter into a copy of it."""
     from lbscene.engine.loop.compare import run_compare
 
-    m = filter_case(tmp_path, gaussian_dip(depth, centre_nm, sigma_nm), noise)
-    res = run_compare(m, history=False)
+    m = filter_case(tmp_path_factory.mktemp("narrow-dip"), gaussian_dip(0.25, 560.0, 15.0))
+    return m, run_compare(m, history=False)
+
+
+@pytest.mark.parametrize("sigma_nm,depth,centre_nm,noise", DIPS)
+def test_an_undeclared_dip_is_a_filter_at_the_resolution_the_data_choose(sigma_nm, depth, centre_nm, noise,
+                                                                         tmp_path, request):
+    from lbscene.engine.loop.compare import run_compare
+
+    if (sigma_nm, depth, centre_nm, noise) == (15.0, 0.25, 560.0, 1.0):
+        m, res = request.getfixturevalue("narrow_dip")
+    else:
+        m = filter_case(tmp_path, gaussian_dip(depth, centre_nm, sigma_nm), noise)
+        res = run_compare(m, history=False)
     assert res.verdict == "missing:spectral_filter", (str(res.verdict), res.diagnosis.explanation)
     s = _suspect(res, "hypothesis:smooth_filter")
     h = s.fit.hypothesis_data
@@ -166,16 +179,19 @@ def test_an_undeclared_dip_is_a_filter_at_the_resolution_the_data_choose(sigma_n
     assert got == pytest.approx(1.0 - depth, abs=0.03 if sigma_nm >= 15 else 0.08)
 
 
-def test_the_fitted_narrow_filter_pasted_into_the_booth_explains_the_data(tmp_path):
+def test_the_fitted_narrow_filter_pasted_into_the_booth_explains_the_data(narrow_dip, tmp_path):
+    import shutil
+
     from lbscene.engine.loop.compare import run_compare
 
-    m = filter_case(tmp_path, gaussian_dip(0.25, 560.0, 15.0))
-    res = run_compare(m, history=False)
+    shared, res = narrow_dip
     assert res.verdict == "missing:spectral_filter"
     snippet = res.diagnosis.snippet
     assert "B-splines, knots" in snippet and "chosen by BIC" in snippet
-    H.add_to_booth(tmp_path / "booth", snippet)
-    after = run_compare(m, history=False)
+    # the user's edit on a copy of the case (booth and measurements), the shared one unchanged
+    shutil.copytree(shared.parent.parent, tmp_path / "case")
+    H.add_to_booth(tmp_path / "case" / "booth", snippet)
+    after = run_compare(tmp_path / "case" / shared.parent.name / shared.name, history=False)
     assert after.verdict == "none", after.diagnosis.explanation
     assert after.fit.spectral_rmse_percent < 1.5
 
@@ -333,14 +349,14 @@ def test_text_json_and_html_say_the_same_unstable_verdict(tmp_path, monkeypatch)
 
     monkeypatch.setattr(D, "STABLE_SHARE", 1.01)        # every verdict reported as unstable
     m = filter_case(tmp_path, gaussian_dip(0.25, 560.0, 15.0))
-    r = CliRunner().invoke(app, ["compare", str(m), "--no-history", "--format", "json"])
+    # one comparison, its three outputs: text on stdout, the JSON file and the HTML report
+    r = CliRunner().invoke(app, ["compare", str(m), "--no-history", "--json-out", str(tmp_path / "r.json"),
+                                 "--report", str(tmp_path / "r.html")])
     assert r.exit_code == 0, r.output
-    j = json.loads(r.output)
+    j = json.loads((tmp_path / "r.json").read_text())
     text = j["verdict"]
     assert text.startswith("unstable:missing:spectral_filter (") and j["snippet"] is None
     assert j["diagnosis"]["verdict_detail"]["kind"] == "unstable"
-    r = CliRunner().invoke(app, ["compare", str(m), "--no-history", "--report", str(tmp_path / "r.html")])
-    assert r.exit_code == 0, r.output
     assert text in " ".join(r.output.split())
     html = (tmp_path / "r.html").read_text()
     assert f"verdict: <b>{text}</b>" in html

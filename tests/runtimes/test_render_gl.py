@@ -197,6 +197,30 @@ def test_schedules_give_the_same_image(gl_ctx, gonio_job):
     assert out["realtime"][..., :3].std() > 10          # not a blank image
 
 
+def test_highlight_code_is_left_out_only_where_it_adds_nothing(gl_ctx, gonio_job):
+    """sample.frag leaves out the highlight code of emitter kinds the view lacks and the profile
+    lookup when every profile is flat (EMITTER_KINDS, EMITTER_PROFILES): with every kind's code
+    and the lookup compiled in, the tube booth's highlight (45as0) is the same, in float XYZ
+    (the bands' sum) and in 8 bits (the realtime schedule's sum in XYZ)."""
+    r = gonio_job.renderer(ctx=gl_ctx)
+    try:
+        vals = r.scene.view("45as0").values
+        assert (vals["view.emitter_kinds"], vals["view.emitter_profiles"]) == (2, 0)   # one bare tube
+        lean = r.render("45as0", (128, 96), want_xyz=True).xyz
+        lean8 = r.render("45as0", (128, 96), schedule="realtime").rgba8.astype(int)
+        vals["view.emitter_kinds"], vals["view.emitter_profiles"] = 7, 1
+        full = r.render("45as0", (128, 96), want_xyz=True).xyz
+        full8 = r.render("45as0", (128, 96), schedule="realtime").rgba8.astype(int)
+        vals["sample.specular_weight"] = 0.0
+        none = r.render("45as0", (128, 96), want_xyz=True).xyz
+    finally:
+        r.close()
+    np.testing.assert_allclose(lean, full, rtol=1e-5, atol=1e-6 * full.max())
+    assert np.abs(lean8 - full8).max() <= 1
+    # there is a highlight to compare
+    assert (full[..., 1] - none[..., 1]).max() > 0.05 * full[..., 1].max()
+
+
 def test_dither_matches_the_colour_module(gl_ctx, gonio_job):
     from lbscene.engine.colour.dither import blue_noise, dither_quantise
 
