@@ -289,7 +289,11 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         The hypothesis; ``ir`` is the booth :meth:`Hypothesis.augment` built (its properties at
         their ``initial`` values), ``fit`` and ``problem`` the refit on it.
     solve_on : callable
-        ``solve_on(ir) -> (FitProblem, FitResult)``: the same refit on another booth.
+        ``solve_on(ir, start) -> (FitProblem, FitResult)``: the same refit on another booth,
+        started from the parameter values of the fit ``start`` (the profile passes the refit of
+        the nearest booth already solved: its optimum is close).  The fit may be returned
+        without its standard errors (``FitResult.errors_pending``): only the one kept needs
+        them, and ``problem.add_errors`` adds them.
 
     Returns
     -------
@@ -310,11 +314,19 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
 
     seen[key(values)] = (ir, problem, fit)
 
+    span = {p.name: max(float(p.grid[-1]) - float(p.grid[0]), 1e-9) for p in params}
+
+    def nearest(v):
+        """The refit already solved whose values are nearest to ``v`` (each in its grid's span)."""
+        def dist(k):
+            return sum(((a - float(v[p.name])) / span[p.name]) ** 2 for a, p in zip(k, params))
+        return seen[min(seen, key=dist)][2]
+
     def at(v):
         k = key(v)
         if k not in seen:
             ir_v = H.regeometry(ir, lighting, v)
-            seen[k] = (ir_v, *solve_on(ir_v))
+            seen[k] = (ir_v, *solve_on(ir_v, nearest(v)))
         return seen[k]
 
     sig: dict[str, float | None] = {}
@@ -357,6 +369,8 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         if values == before:
             break
     ir_b, prob_b, fit_b = at(values)
+    if getattr(fit_b, "errors_pending", False):
+        fit_b = prob_b.add_errors(fit_b)
     for n, v in values.items():
         fit_b.values[f"hypothesis.{H.id}.{n}"] = v
         if sig[n] is not None:

@@ -164,11 +164,39 @@ def test_profile_recovers_a_quadratic_minimum_and_its_curvature():
         def regeometry(ir, lighting, values):
             return values["gap_mm"]
 
-    ir, fit, prob, n = profile_geometry(H, 20.0, "L", lambda x: (None, R(x)), R(20.0), None)
+    ir, fit, prob, n = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert n == 1 and ir == pytest.approx(37.0)
     assert fit.values["hypothesis.toy.gap_mm"] == pytest.approx(37.0)
     assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(0.5)
     assert fit.hypothesis_data["geometry"]["toy"]["gap_mm"][1] == pytest.approx(0.5)
+
+
+def test_each_profile_point_starts_from_the_nearest_point_solved():
+    """The refit at a new value starts from the optimum of the nearest value already solved
+    (grid 5, 20, 45, 80 from 20, then the parabola's vertex 37 from 45)."""
+    class R:
+        def __init__(self, x):
+            self.chi2, self.dof, self.values, self.stderr, self.x = 4 * (x - 37.0) ** 2 + 50.0, 60, {}, {}, x
+
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return [GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0))]
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return values["gap_mm"]
+
+    starts = []
+
+    def solve_on(x, start):
+        starts.append((x, start.x))
+        return None, R(x)
+
+    profile_geometry(H, 20.0, "L", solve_on, R(20.0), None)
+    assert starts == [(5.0, 20.0), (45.0, 20.0), (80.0, 45.0), (pytest.approx(37.0), 45.0)]
 
 
 def test_a_flat_profile_is_not_pinned():
@@ -187,7 +215,7 @@ def test_a_flat_profile_is_not_pinned():
         def regeometry(ir, lighting, values):
             return values["gap_mm"]
 
-    _, fit, _, _ = profile_geometry(H, 20.0, "L", lambda x: (None, R(x)), R(20.0), None)
+    _, fit, _, _ = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert "hypothesis.toy.gap_mm" not in fit.stderr
     assert fit.hypothesis_data["geometry"]["toy"]["gap_mm"][1] is None
 
