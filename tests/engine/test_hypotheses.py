@@ -287,3 +287,44 @@ def test_a_rough_plate_at_a_profiled_height_is_written_as_rough_glass(tmp_path):
     d = compile_booth(f).diffuser
     assert d.scattering == {"type": "roughness", "roughness": 0.3}
     assert d.z_mm == pytest.approx(620 - 13 - 45)
+
+
+def test_the_rough_plate_hypothesis_grid_is_shipped():
+    # every roughness the diffuser_plate hypothesis profiles is read from a table, not simulated
+    from lbscene.engine.light.rough_slab import SHIPPED_PLATES
+    from lbscene.engine.loop.hypotheses import PLATE_ROUGHNESSES, ROUGH_PLATE_IOR
+
+    for r in PLATE_ROUGHNESSES:
+        assert (r, ROUGH_PLATE_IOR) in SHIPPED_PLATES
+
+
+def test_standard_errors_added_later_are_those_of_the_full_solve(tmp_path):
+    """A fit solved without its standard errors (a profile point) gets, once kept, the same
+    errors and correlations as the fit solved with them."""
+    import shutil
+
+    from lbscene.engine.loop.diagnose import noise_model
+    from lbscene.engine.loop.fit import FitProblem, resolve_free_parameters
+    from lbscene.engine.loop.measurements import load_measurements
+    from lbscene.engine.truth.synthetic import synthesize
+
+    booth = tmp_path / "booth"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "data" / "hidden-effect-booth", booth)
+    m = synthesize(booth, tmp_path / "m", lighting="FL", truth_effects={"interreflection": {}},
+                   noise_percent=1.0)
+    meas = load_measurements(Path(m))
+    noise = noise_model(meas)
+    effects = {k: dict(v) for k, v in meas.ir.effects.items()}
+    free = resolve_free_parameters(meas.ir, meas.lighting, effects, meas.known_output_groups,
+                                   str(meas.booth_file))
+    full = FitProblem(meas, effects, free, noise.percent, noise.spectral_percent, {}).solve()
+    prob = FitProblem(meas, effects, free, noise.percent, noise.spectral_percent, {})
+    lazy = prob.solve(errors=False)
+    assert lazy.errors_pending and not lazy.stderr
+    assert lazy.chi2 == pytest.approx(full.chi2, rel=1e-12)
+    prob.add_errors(lazy)
+    assert not lazy.errors_pending
+    assert lazy.stderr.keys() == full.stderr.keys() and lazy.stderr
+    for k, v in full.stderr.items():
+        assert lazy.stderr[k] == pytest.approx(v, rel=1e-9)
+    np.testing.assert_allclose(lazy.correlation, full.correlation, atol=1e-9)
