@@ -5,7 +5,7 @@ The truth is Mitsuba 3, committed as data beside the script that rendered it
 other sizes, lamp layouts and plate heights than the validation scenes, each with hardware the
 booth file handed to the diagnosis does not declare — a black luminaire cavity (its occluders
 deleted and the ceiling declared in the walls' grey), a ceiling darker than declared, a rough
-plate (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
+plate (deleted), a plane mirror above each tube (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
 1 % seeded meter noise is added and ``compare`` runs on the edited booth.
 
 Every case states the verdicts the data allow; the truth must be in the verdict (named, or one
@@ -69,6 +69,7 @@ class Case:
 _CAVITY = ("effect:aperture_occlusion", "section:occluders", "surface:ceiling=wall")
 _CEILING = ("surface:ceiling=wall",)
 _PLATE = ("effect:diffuser", "section:diffuser")
+_MIRROR = ("effect:reflector", "section:reflectors", "lamp:reflector")
 CASES = [
     Case("cavity-floor-known", "cavity-wide", "floor", _CAVITY, True, "aperture_occlusion",
          ("missing:aperture_occlusion",), slow=True),
@@ -91,6 +92,15 @@ CASES = [
     # a plate on the A3 sheet with the output fitted changes the level only: the fit takes it
     Case("rough-plate-a3-fitted", "rough-plate", "a3", _PLATE, False, "diffuser",
          ("missing:diffuser", "ambiguous:diffuser", "none"), slow=True),
+    # a plane mirror above each tube, facing down (deleted, and the lamps' reference to it)
+    Case("mirror-floor-known", "mirror-above", "floor", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True),
+    Case("mirror-a3-known", "mirror-above", "a3", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True),
+    Case("mirror-floor-fitted", "mirror-above", "floor", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
+    Case("mirror-a3-fitted", "mirror-above", "a3", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
 ]
 
 
