@@ -412,8 +412,8 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
     understates the uncertainty.  For each pair :math:`(θ_a, θ_b)`, in units of their
     conditional uncertainties :math:`u = (θ_a - \\hat θ_a)/σ_a`, :math:`v = (θ_b - \\hat θ_b)/σ_b`,
     a quadratic is fitted to the refits' :math:`χ^2` at the :data:`JOINT_POINTS` profile points
-    nearest the optimum with the other properties at their fitted values (two diagonal points
-    are refitted when the profile left none off the axes),
+    nearest the optimum with the other properties at their fitted values (one diagonal point is
+    refitted when the profile left none off the axes),
 
     .. math::
 
@@ -447,10 +447,10 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
 
             pts = local()
             if not np.any((np.abs(pts[:, 0]) > 1e-9) & (np.abs(pts[:, 1]) > 1e-9)):
-                for su, sv in ((1.0, 1.0), (1.0, -1.0)):
-                    ta = float(np.clip(values[a] + su * sa, *byname[a].bounds))
-                    tb = float(np.clip(values[b] + sv * sb, *byname[b].bounds))
-                    at({**values, a: ta, b: tb})
+                # one refit off the axes gives the cross term (the axes give the rest)
+                ta = float(np.clip(values[a] + sa, *byname[a].bounds))
+                tb = float(np.clip(values[b] + sb, *byname[b].bounds))
+                at({**values, a: ta, b: tb})
                 pts = local()
             u, w, c = pts.T
             X = np.stack([np.ones_like(u), u, w, u * u, u * w, w * w], axis=1)
