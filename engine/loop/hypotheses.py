@@ -335,6 +335,7 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
 
     sig: dict[str, float | None] = {}
     choices: dict[str, dict[float, float]] = {}
+    edge: set[str] = set()              # optimum at an end of its grid (one-sided uncertainty)
     for sweep in range(PROFILE_SWEEPS):
         before = dict(values)
         for p in params:
@@ -370,6 +371,10 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
                 s = infl / rise if rise > 0 else None
             sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
+            if not (a > 0 and 0 < j < len(xs) - 1):
+                edge.add(p.name)
+            else:
+                edge.discard(p.name)
         if values == before:
             break
     # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
@@ -378,7 +383,8 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         p.categorical and len(choices.get(p.name, {})) > 1 and
         max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
     fb = at(values)[2]
-    joint = joint_profile(params, values, sig, seen, at, max(1.0, fb.chi2 / max(fb.dof, 1)))
+    joint = joint_profile([p for p in params if p.name not in edge], values, sig, seen, at,
+                          max(1.0, fb.chi2 / max(fb.dof, 1)))
     for (a, b), j in joint.items():
         # the marginal uncertainty where two properties trade off: the wider of the two
         for n in (a, b):
@@ -422,11 +428,17 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
 
     and the marginal uncertainties are :math:`σ_a \\sqrt{Σ_{uu}}`, :math:`σ_b \\sqrt{Σ_{vv}}`,
     their correlation :math:`ρ = Σ_{uv}/\\sqrt{Σ_{uu} Σ_{vv}}`.  A Hessian that is not
-    positive definite is a ridge: the pair is an unidentified combination (``sigma`` None).
+    positive definite, or whose marginal uncertainty exceeds a bound's range, is a ridge: the pair
+    is an unidentified combination (``sigma`` None).  ``range`` gives each property's extent in
+    the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
+    \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties; along a ridge, to the
+    bounds).  Properties whose optimum lies at an end
+    of their grid (one-sided uncertainty) are left out by :func:`profile_geometry`.
 
     Returns
     -------
-    dict : ``(a, b)`` → ``{"rho": ρ or None, "sigma": {a: σ or None, b: σ or None}}``.
+    dict : ``(a, b)`` → ``{"rho": ρ or None, "sigma": {a: σ or None, b: σ or None}[, "range":
+    {a: (lo, hi), b: (lo, hi)}]}``.
     """
     names = [p.name for p in params if not p.categorical and sig.get(p.name) is not None]
     byname = {p.name: p for p in params}
@@ -457,13 +469,24 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
             if len(pts) < 6 or np.linalg.matrix_rank(X) < 6:
                 continue
             coef, *_ = np.linalg.lstsq(X, c, rcond=None)
+            # the region the readings allow (Δχ² ≤ 4 infl on the quadratic, ≈ 2 σ) within the
+            # properties' bounds: its extent in each
+            lo_a, hi_a = byname[a].bounds
+            lo_b, hi_b = byname[b].bounds
+            U, W = np.meshgrid(np.linspace((lo_a - values[a]) / sa, (hi_a - values[a]) / sa, 201),
+                               np.linspace((lo_b - values[b]) / sb, (hi_b - values[b]) / sb, 201), indexing="ij")
+            q = coef[3] * U * U + coef[4] * U * W + coef[5] * W * W + coef[1] * U + coef[2] * W
+            ok = q <= q.min() + 4.0 * infl
+            rng = {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
+                   b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
             Hm = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
-            if Hm[0, 0] <= 0 or np.linalg.det(Hm) <= 0:
-                out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}}
+            S = 2.0 * infl * np.linalg.inv(Hm) if Hm[0, 0] > 0 and np.linalg.det(Hm) > 0 else None
+            if S is None or sa * math.sqrt(S[0, 0]) >= hi_a - lo_a or sb * math.sqrt(S[1, 1]) >= hi_b - lo_b:
+                # a ridge: no minimum within the bounds
+                out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}, "range": rng}
                 continue
-            S = 2.0 * infl * np.linalg.inv(Hm)
             out[(a, b)] = {"rho": float(S[0, 1] / math.sqrt(S[0, 0] * S[1, 1])),
-                           "sigma": {a: sa * math.sqrt(S[0, 0]), b: sb * math.sqrt(S[1, 1])}}
+                           "sigma": {a: sa * math.sqrt(S[0, 0]), b: sb * math.sqrt(S[1, 1])}, "range": rng}
     return out
 
 
@@ -822,7 +845,9 @@ class AperturePlateHypothesis(PlateHypothesis):
         for pair, j in (getattr(fit, "hypothesis_data", None) or {}).get("joint", {}).get(cls.id, {}).items():
             a, b = pair.split("|")
             if j["rho"] is None:
-                out += f"# hypothesis: {a} and {b} trade off: these readings cannot tell them apart\n"
+                span_ = "; ".join(f"{n} {_g(lo)} to {_g(hi)}" for n, (lo, hi) in j.get("range", {}).items())
+                out += (f"# hypothesis: {a} and {b} trade off: these readings cannot tell them apart"
+                        + (f"; Δχ² ≤ 4 allows {span_}" if span_ else "") + "\n")
             elif abs(j["rho"]) >= 0.7:
                 out += (f"# hypothesis: {a} and {b} trade off (correlation {j['rho']:+.2f}): their "
                         "uncertainties below are the joint ones\n")

@@ -331,9 +331,9 @@ def test_standard_errors_added_later_are_those_of_the_full_solve(tmp_path):
 
 
 def test_two_properties_that_trade_off_get_their_joint_uncertainty():
-    """χ² = 10 + dᵀ C⁻¹ d with σ = (4, 20) and correlation −0.9 about (37, 200): the 1-D profiles'
+    """χ² = 10 + dᵀ C⁻¹ d with σ = (4, 20) and correlation −0.8 about (37, 200): the 1-D profiles'
     conditional uncertainties are σ √(1 − ρ²); the joint profile gives back the marginal σ and ρ."""
-    C = np.array([[16.0, -0.9 * 4 * 20], [-0.9 * 4 * 20, 400.0]])
+    C = np.array([[16.0, -0.8 * 4 * 20], [-0.8 * 4 * 20, 400.0]])
     Ci = np.linalg.inv(C)
 
     class R:
@@ -356,7 +356,37 @@ def test_two_properties_that_trade_off_get_their_joint_uncertainty():
     _, fit, _, _ = profile_geometry(H, {"opening_v_mm": 150.0, "gap_mm": 20.0}, "L",
                                     lambda v, start: (None, R(v)), R({"opening_v_mm": 150.0, "gap_mm": 20.0}), None)
     j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
-    assert j["rho"] == pytest.approx(-0.9, abs=1e-6)
+    assert j["rho"] == pytest.approx(-0.8, abs=1e-6)
     assert j["sigma"]["gap_mm"] == pytest.approx(4.0, rel=1e-6)
     assert j["sigma"]["opening_v_mm"] == pytest.approx(20.0, rel=1e-6)
     assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(4.0, rel=1e-6)
+
+
+def test_two_properties_on_a_ridge_are_an_unidentified_combination():
+    """χ² = 10 + ((θ_a − 20)/4 + (θ_b − 150)/20)², profiled from (150, 20): only the combination is
+    pinned.  The pair is said to be unidentified, and the region Δχ² ≤ 4 reaches along the ridge
+    to the bounds: it holds the ridge's points (100, 30) and (200, 10)."""
+    class R:
+        def __init__(self, v):
+            t = (v["gap_mm"] - 20.0) / 4.0 + (v["opening_v_mm"] - 150.0) / 20.0
+            self.chi2, self.dof, self.values, self.stderr = 10.0 + t * t, 60, {}, {}
+
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return [GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
+                    GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0))]
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return dict(values)
+
+    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
+    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
+    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    assert j["rho"] is None and j["sigma"] == {"opening_v_mm": None, "gap_mm": None}
+    assert "hypothesis.toy.gap_mm" not in fit.stderr
+    (olo, ohi), (glo, ghi) = j["range"]["opening_v_mm"], j["range"]["gap_mm"]
+    assert olo <= 100.0 and ohi >= 200.0 and glo <= 10.0 and ghi >= 30.0
