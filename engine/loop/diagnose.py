@@ -797,7 +797,7 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
             # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
             # pair the hardware keeps the hypothesis' first guess
             def solve_on(ir_v, start, m=m, new_eff=new_eff, free=free):
-                # started from the nearest profile point's optimum; standard errors only for the
+                # started from the hypothesis refit's optimum; standard errors only for the
                 # point kept (profile_geometry adds them)
                 fr = [replace(fp, initial=float(np.clip(start.values.get(fp.target, fp.initial), *fp.bounds)))
                       for fp in free]

@@ -294,10 +294,12 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         their ``initial`` values), ``fit`` and ``problem`` the refit on it.
     solve_on : callable
         ``solve_on(ir, start) -> (FitProblem, FitResult)``: the same refit on another booth,
-        started from the parameter values of the fit ``start`` (the profile passes the refit of
-        the nearest booth already solved: its optimum is close).  The fit may be returned
-        without its standard errors (``FitResult.errors_pending``): only the one kept needs
-        them, and ``problem.add_errors`` adds them.
+        started from the parameter values of the fit ``start`` (the profile passes ``fit``:
+        starting each point from its neighbour's optimum instead changed the path of the
+        profiles along the step-like χ² of an opening, and with it their cost and verdicts'
+        shares).  The fit may be returned without its standard errors
+        (``FitResult.errors_pending``): only the one kept needs them, and ``problem.add_errors``
+        adds them.
 
     Returns
     -------
@@ -320,22 +322,15 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
 
     span = {p.name: max(float(p.grid[-1]) - float(p.grid[0]), 1e-9) for p in params}
 
-    def nearest(v):
-        """The refit already solved whose values are nearest to ``v`` (each in its grid's span)."""
-        def dist(k):
-            return sum(((a - float(v[p.name])) / span[p.name]) ** 2 for a, p in zip(k, params))
-        return seen[min(seen, key=dist)][2]
-
     def at(v):
         k = key(v)
         if k not in seen:
             ir_v = H.regeometry(ir, lighting, v)
-            seen[k] = (ir_v, *solve_on(ir_v, nearest(v)))
+            seen[k] = (ir_v, *solve_on(ir_v, fit))
         return seen[k]
 
     sig: dict[str, float | None] = {}
     choices: dict[str, dict[float, float]] = {}
-    edge: set[str] = set()              # optimum at an end of its grid (one-sided uncertainty)
     for sweep in range(PROFILE_SWEEPS):
         before = dict(values)
         for p in params:
@@ -371,10 +366,6 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
                 s = infl / rise if rise > 0 else None
             sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
-            if not (a > 0 and 0 < j < len(xs) - 1):
-                edge.add(p.name)
-            else:
-                edge.discard(p.name)
         if values == before:
             break
     # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
@@ -383,8 +374,7 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         p.categorical and len(choices.get(p.name, {})) > 1 and
         max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
     fb = at(values)[2]
-    joint = joint_profile([p for p in params if p.name not in edge], values, sig, seen, at,
-                          max(1.0, fb.chi2 / max(fb.dof, 1)))
+    joint = joint_profile(params, values, sig, seen, at, max(1.0, fb.chi2 / max(fb.dof, 1)))
     for (a, b), j in joint.items():
         # the marginal uncertainty where two properties trade off: the wider of the two
         for n in (a, b):
@@ -432,8 +422,8 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
     is an unidentified combination (``sigma`` None).  ``range`` gives each property's extent in
     the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
     \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties; along a ridge, to the
-    bounds).  Properties whose optimum lies at an end
-    of their grid (one-sided uncertainty) are left out by :func:`profile_geometry`.
+    bounds).  A property whose optimum lies at an end of
+    its grid enters with its one-sided uncertainty; the region is cut at its bounds.
 
     Returns
     -------

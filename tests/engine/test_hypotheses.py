@@ -171,9 +171,8 @@ def test_profile_recovers_a_quadratic_minimum_and_its_curvature():
     assert fit.hypothesis_data["geometry"]["toy"]["gap_mm"][1] == pytest.approx(0.5)
 
 
-def test_each_profile_point_starts_from_the_nearest_point_solved():
-    """The refit at a new value starts from the optimum of the nearest value already solved
-    (grid 5, 20, 45, 80 from 20, then the parabola's vertex 37 from 45)."""
+def test_each_profile_point_starts_from_the_hypothesis_refit():
+    """Every refit of the profile starts from the hypothesis' own refit (its parameter values)."""
     class R:
         def __init__(self, x):
             self.chi2, self.dof, self.values, self.stderr, self.x = 4 * (x - 37.0) ** 2 + 50.0, 60, {}, {}, x
@@ -196,7 +195,7 @@ def test_each_profile_point_starts_from_the_nearest_point_solved():
         return None, R(x)
 
     profile_geometry(H, 20.0, "L", solve_on, R(20.0), None)
-    assert starts == [(5.0, 20.0), (45.0, 20.0), (80.0, 45.0), (pytest.approx(37.0), 45.0)]
+    assert starts == [(5.0, 20.0), (45.0, 20.0), (80.0, 20.0), (pytest.approx(37.0), 20.0)]
 
 
 def test_a_flat_profile_is_not_pinned():
