@@ -331,6 +331,7 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
 
     sig: dict[str, float | None] = {}
     choices: dict[str, dict[float, float]] = {}
+    edge: set[str] = set()              # optimum at an end of its grid (one-sided uncertainty)
     for sweep in range(PROFILE_SWEEPS):
         before = dict(values)
         for p in params:
@@ -366,6 +367,10 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
                 s = infl / rise if rise > 0 else None
             sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
+            if 0 < j < len(xs) - 1:
+                edge.discard(p.name)
+            else:
+                edge.add(p.name)
         if values == before:
             break
     # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
@@ -374,7 +379,8 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         p.categorical and len(choices.get(p.name, {})) > 1 and
         max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
     fb = at(values)[2]
-    joint = joint_profile(params, values, sig, seen, at, max(1.0, fb.chi2 / max(fb.dof, 1)))
+    joint = joint_profile([p for p in params if p.name not in edge], values, sig, seen, at,
+                          max(1.0, fb.chi2 / max(fb.dof, 1)))
     for (a, b), j in joint.items():
         # the marginal uncertainty where two properties trade off: the wider of the two
         for n in (a, b):
@@ -421,9 +427,9 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
     positive definite, or whose marginal uncertainty exceeds a bound's range, is a ridge: the pair
     is an unidentified combination (``sigma`` None).  ``range`` gives each property's extent in
     the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
-    \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties; along a ridge, to the
-    bounds).  A property whose optimum lies at an end of
-    its grid enters with its one-sided uncertainty; the region is cut at its bounds.
+    \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties); for a ridge, the extent of
+    the refits themselves within that :math:`Δχ^2` of the best.  Properties whose optimum lies at an end of
+    their grid (one-sided uncertainty) are left out by :func:`profile_geometry`.
 
     Returns
     -------
@@ -472,7 +478,11 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
             Hm = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
             S = 2.0 * infl * np.linalg.inv(Hm) if Hm[0, 0] > 0 and np.linalg.det(Hm) > 0 else None
             if S is None or sa * math.sqrt(S[0, 0]) >= hi_a - lo_a or sb * math.sqrt(S[1, 1]) >= hi_b - lo_b:
-                # a ridge: no minimum within the bounds
+                # a ridge (or a saddle: the quadratic says nothing there): the refits themselves
+                # within Δχ² = 4 infl of the best give the values the readings allow
+                near = pts[pts[:, 2] <= pts[:, 2].min() + 4.0 * infl * (1 + 1e-9)]
+                rng = {n: (float(values[n] + s_ * near[:, k].min()), float(values[n] + s_ * near[:, k].max()))
+                       for k, (n, s_) in enumerate(((a, sa), (b, sb)))}
                 out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}, "range": rng}
                 continue
             out[(a, b)] = {"rho": float(S[0, 1] / math.sqrt(S[0, 0] * S[1, 1])),
