@@ -111,11 +111,13 @@ MIN_WEIGHT = 1e-3
 #: version of the computation (part of the cache key)
 _FORMAT = "rough-slab-2"
 #: plates whose tables travel with lbscene (``(roughness, ior)``; α = roughness²): the shipped
-#: booths' glass plate and common PMMA / glass diffusers, so that the first evaluation of a booth
+#: booths' glass plate, common PMMA / glass diffusers and the roughness grid of the diagnosis'
+#: rough-plate hypothesis (``diffuser_plate``, ior 1.5), so that the first evaluation of a booth
 #: with one of them does not pay the Monte Carlo (≈ 2–4 s).  Made by
 #: ``scripts/gen_rough_slab_tables.py``; a test checks they are current.
 SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
-                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49))
+                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49),
+                  (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
 

@@ -796,13 +796,15 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
             # properties the forward model cannot vary (a plate's height, a mirror's distance):
             # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
             # pair the hardware keeps the hypothesis' first guess
-            def solve_on(ir_v, fit0=fit, m=m, new_eff=new_eff, free=free):
-                fr = [replace(fp, initial=float(np.clip(fit0.values.get(fp.target, fp.initial), *fp.bounds)))
+            def solve_on(ir_v, start, m=m, new_eff=new_eff, free=free):
+                # started from the hypothesis refit's optimum; standard errors only for the
+                # point kept (profile_geometry adds them)
+                fr = [replace(fp, initial=float(np.clip(start.values.get(fp.target, fp.initial), *fp.bounds)))
                       for fp in free]
                 c_v = {key: b.cache.setdefault(key, {}) for key in SHARED_GEOMETRY_STORES}
                 p_v = FitProblem(replace(m, ir=ir_v), new_eff, fr, noise.percent, noise.spectral_percent, c_v,
                                  tolerance=SCORING_TOLERANCE)
-                return p_v, p_v.solve()
+                return p_v, p_v.solve(errors=False)
             cur_ir, fit, prob, n_geo = profile_geometry(H, cur_ir, b.lighting, solve_on, fit, prob)
             k += n_geo
             n_params[HYPOTHESIS_PREFIX + H.id] = n_params.get(HYPOTHESIS_PREFIX + H.id, 0) + n_geo

@@ -276,6 +276,9 @@ class FitResult:
     message: str = ""
     nfev: int = 0
     fitted: bool = True
+    #: solved without its standard errors (:meth:`FitProblem.solve` with ``errors=False``); the
+    #: problem's :meth:`FitProblem.add_errors` computes them when the fit is kept
+    errors_pending: bool = False
 
     @property
     def n_params(self) -> int:
@@ -518,7 +521,11 @@ class FitProblem:
         scales = {g: 1.0 for g in self.groups}
         return self._result(x0, scales, success=True, message="not fitted", fitted=False)
 
-    def solve(self) -> FitResult:
+    def solve(self, errors: bool = True) -> FitResult:
+        """Least-squares fit of the free parameters (the linear output scales solved exactly at
+        each step).  ``errors=False`` skips the finite-difference Jacobian of the standard errors
+        (one forward evaluation per non-linear parameter): for fits only compared by χ², such as
+        the points of a profile, of which only the one kept needs them (:meth:`add_errors`)."""
         from scipy.optimize import least_squares
 
         from lbscene.engine.light.forward import blas_single_thread
@@ -531,7 +538,8 @@ class FitProblem:
         with blas_single_thread():
             if not self.nl:
                 A, T, *_ = self.components(np.zeros(0))
-                return self._result(np.zeros(0), self.scales_for(A, T), True, "linear", fitted=True)
+                return self._result(np.zeros(0), self.scales_for(A, T), True, "linear", fitted=True,
+                                    errors=errors)
             lo = np.array([self.free[i].bounds[0] for i in self.nl], float)
             hi = np.array([self.free[i].bounds[1] for i in self.nl], float)
             x0 = np.clip(np.array([self.free[i].initial for i in self.nl], float),
@@ -541,9 +549,22 @@ class FitProblem:
                                 xtol=self.tolerance, ftol=self.tolerance, max_nfev=200)
             A, T, *_ = self.components(sol.x)
             return self._result(sol.x, self.scales_for(A, T), bool(sol.success), str(sol.message),
-                                fitted=True)
+                                fitted=True, errors=errors)
 
-    def _result(self, x_nl, scales, success, message, fitted) -> FitResult:
+    def add_errors(self, fit: FitResult) -> FitResult:
+        """``fit`` (a solution of this problem) with the standard errors, correlations and
+        warnings :meth:`solve` skipped with ``errors=False``; unchanged if it has them."""
+        if not fit.errors_pending:
+            return fit
+        from lbscene.engine.light.forward import blas_single_thread
+
+        x_nl = np.array([fit.values[self.free[i].target] for i in self.nl], float)
+        with blas_single_thread():
+            fit.stderr, fit.correlation, fit.warnings = self._errors(x_nl, fit.scales, fit.chi2)
+        fit.errors_pending = False
+        return fit
+
+    def _result(self, x_nl, scales, success, message, fitted, errors: bool = True) -> FitResult:
         A, T, T1, eff, lamp_over = self.components(x_nl)
         s = np.array([scales[g] for g in self.groups])
         values = {}
@@ -554,7 +575,8 @@ class FitProblem:
         r = self.residuals(x_nl, scales)
         chi2 = float(r @ r)
         stderr, corr, warns = {}, np.eye(len(self.free)), []
-        if fitted and self.free:
+        pending = bool(fitted and self.free and not errors)
+        if fitted and self.free and errors:
             stderr, corr, warns = self._errors(x_nl, scales, chi2)
         lux_pred = s @ A if A is not None else None
         tile_pred = s @ T if T is not None else None
@@ -566,6 +588,7 @@ class FitProblem:
             lux_meas=self.meas.illuminance.lux if self.n_lux else None,
             tile_bands_pred=tile_pred, tile_bands_meas=self.tile_meas, tile_band_mask=self.tile_mask,
             tile_1nm_pred=tile1, success=success, message=message, nfev=self.nfev, fitted=fitted,
+            errors_pending=pending,
             tile_centres_nm=self.tile_grid.centres_nm if self.tile_grid is not None else None)
 
     def _errors(self, x_nl, scales, chi2, *, noise_limited: bool = False):

@@ -88,9 +88,12 @@ uncertainty,
 the profile likelihood's curvature (:math:`Δχ^2 = 1` at one standard uncertainty), inflated by
 the reduced :math:`χ^2` where the model leaves more than the noise; at an end of the grid (a
 black interior, say) it is one-sided, :math:`σ_θ = \\max(1, χ^2_\\text{min}/ν)\\,|Δθ/Δχ^2|` to
-the neighbouring value.  The uncertainty is conditional on the other profiled properties at
+the neighbouring value.  That uncertainty is conditional on the other profiled properties at
 their fitted values: where two properties trade off (a higher plate with a smaller opening
-casts nearly the same shadow) it understates the joint uncertainty.  A profile without curvature
+casts nearly the same shadow) it understates the uncertainty, so each pair is also profiled
+jointly (:func:`joint_profile`: a quadratic in both through the refits around the optimum) and
+the larger, marginal uncertainty is given, with the pair's correlation; a pair along which
+:math:`χ^2` has no minimum is an unidentified combination.  A profile without curvature
 (:math:`a \\le 0`, or :math:`σ_θ` larger than the grid's span) means the readings cannot tell the
 property: the written YAML says so.  Each profiled property counts as one parameter in the
 diagnosis' BIC when the readings pin it (a flat profile changes no prediction).
@@ -131,6 +134,7 @@ __all__ = [
     "WallsReflectanceHypothesis",
     "GeometryParameter",
     "profile_geometry",
+    "joint_profile",
     "paste_hardware",
     "HYPOTHESES",
     "applicable_hypotheses",
@@ -289,7 +293,13 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         The hypothesis; ``ir`` is the booth :meth:`Hypothesis.augment` built (its properties at
         their ``initial`` values), ``fit`` and ``problem`` the refit on it.
     solve_on : callable
-        ``solve_on(ir) -> (FitProblem, FitResult)``: the same refit on another booth.
+        ``solve_on(ir, start) -> (FitProblem, FitResult)``: the same refit on another booth,
+        started from the parameter values of the fit ``start`` (the profile passes ``fit``:
+        starting each point from its neighbour's optimum instead changed the path of the
+        profiles along the step-like χ² of an opening, and with it their cost and verdicts'
+        shares).  The fit may be returned without its standard errors
+        (``FitResult.errors_pending``): only the one kept needs them, and ``problem.add_errors``
+        adds them.
 
     Returns
     -------
@@ -310,15 +320,18 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
 
     seen[key(values)] = (ir, problem, fit)
 
+    span = {p.name: max(float(p.grid[-1]) - float(p.grid[0]), 1e-9) for p in params}
+
     def at(v):
         k = key(v)
         if k not in seen:
             ir_v = H.regeometry(ir, lighting, v)
-            seen[k] = (ir_v, *solve_on(ir_v))
+            seen[k] = (ir_v, *solve_on(ir_v, fit))
         return seen[k]
 
     sig: dict[str, float | None] = {}
     choices: dict[str, dict[float, float]] = {}
+    edge: set[str] = set()              # optimum at an end of its grid (one-sided uncertainty)
     for sweep in range(PROFILE_SWEEPS):
         before = dict(values)
         for p in params:
@@ -354,9 +367,28 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 rise = abs(chi[n] - chi[j]) / abs(xs[n] - xs[j]) if len(xs) > 1 else 0.0
                 s = infl / rise if rise > 0 else None
             sig[p.name] = s if s is not None and s < (xs[-1] - xs[0]) else None
+            if 0 < j < len(xs) - 1:
+                edge.discard(p.name)
+            else:
+                edge.add(p.name)
         if values == before:
             break
+    # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
+    # data cannot tell) changes no prediction and costs nothing (decided on the 1-D profiles)
+    pinned = sum(1 for p in params if (sig.get(p.name) is not None) or (
+        p.categorical and len(choices.get(p.name, {})) > 1 and
+        max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
+    fb = at(values)[2]
+    joint = joint_profile([p for p in params if p.name not in edge], values, sig, seen, at,
+                          max(1.0, fb.chi2 / max(fb.dof, 1)))
+    for (a, b), j in joint.items():
+        # the marginal uncertainty where two properties trade off: the wider of the two
+        for n in (a, b):
+            if sig[n] is not None:
+                sig[n] = None if j["sigma"][n] is None or j["sigma"][n] >= span[n] else max(sig[n], j["sigma"][n])
     ir_b, prob_b, fit_b = at(values)
+    if getattr(fit_b, "errors_pending", False):
+        fit_b = prob_b.add_errors(fit_b)
     for n, v in values.items():
         fit_b.values[f"hypothesis.{H.id}.{n}"] = v
         if sig[n] is not None:
@@ -364,13 +396,98 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
     hd = dict(getattr(fit_b, "hypothesis_data", None) or {})
     hd["geometry"] = {**hd.get("geometry", {}), H.id: {n: (values[n], sig[n]) for n in values}}
     hd["choices"] = {**hd.get("choices", {}), H.id: choices}
+    hd["joint"] = {**hd.get("joint", {}), H.id: {f"{a}|{b}": j for (a, b), j in joint.items()}}
     fit_b.hypothesis_data = hd
-    # the parameters the readings pin count in the BIC; a flat profile (a height or a type the
-    # data cannot tell) changes no prediction and costs nothing
-    pinned = sum(1 for p in params if (sig.get(p.name) is not None) or (
-        p.categorical and len(choices.get(p.name, {})) > 1 and
-        max(choices[p.name].values()) - min(choices[p.name].values()) > 1.0))
     return ir_b, fit_b, prob_b, pinned
+
+
+#: refits nearest the optimum (in conditional standard uncertainties) a pair's joint quadratic
+#: is fitted to
+JOINT_POINTS = 9
+
+
+def joint_profile(params, values, sig, seen, at, infl) -> dict:
+    """Joint uncertainty of each pair of profiled properties the 1-D profiles pin.
+
+    The 1-D profile of a property holds the others at their fitted values: where two trade off
+    (a higher plate with a smaller opening casts nearly the same shadow) its curvature
+    understates the uncertainty.  For each pair :math:`(θ_a, θ_b)`, in units of their
+    conditional uncertainties :math:`u = (θ_a - \\hat θ_a)/σ_a`, :math:`v = (θ_b - \\hat θ_b)/σ_b`,
+    a quadratic is fitted to the refits' :math:`χ^2` at the :data:`JOINT_POINTS` profile points
+    nearest the optimum with the other properties at their fitted values (one diagonal point is
+    refitted when the profile left none off the axes),
+
+    .. math::
+
+        χ^2(u, v) \\approx c + g^\\mathsf{T} x + \\tfrac12 x^\\mathsf{T} \\mathbf H x, \\qquad
+        Σ = 2 \\max(1, χ^2_\\text{min}/ν)\\,\\mathbf H^{-1},
+
+    and the marginal uncertainties are :math:`σ_a \\sqrt{Σ_{uu}}`, :math:`σ_b \\sqrt{Σ_{vv}}`,
+    their correlation :math:`ρ = Σ_{uv}/\\sqrt{Σ_{uu} Σ_{vv}}`.  A Hessian that is not
+    positive definite, or whose marginal uncertainty exceeds a bound's range, is a ridge: the pair
+    is an unidentified combination (``sigma`` None).  ``range`` gives each property's extent in
+    the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
+    \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties); for a ridge, the extent of
+    the refits themselves within that :math:`Δχ^2` of the best.  Properties whose optimum lies at an end of
+    their grid (one-sided uncertainty) are left out by :func:`profile_geometry`.
+
+    Returns
+    -------
+    dict : ``(a, b)`` → ``{"rho": ρ or None, "sigma": {a: σ or None, b: σ or None}[, "range":
+    {a: (lo, hi), b: (lo, hi)}]}``.
+    """
+    names = [p.name for p in params if not p.categorical and sig.get(p.name) is not None]
+    byname = {p.name: p for p in params}
+    out = {}
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            sa, sb = float(sig[a]), float(sig[b])
+
+            def local():
+                pts = []
+                for k, (_, _, f) in seen.items():
+                    v = dict(zip([p.name for p in params], k))
+                    if any(abs(v[n] - round(float(values[n]), 6)) > 1e-9 for n in v if n not in (a, b)):
+                        continue
+                    pts.append(((v[a] - values[a]) / sa, (v[b] - values[b]) / sb, float(f.chi2)))
+                pts = np.array(pts, float).reshape(-1, 3)
+                return pts[np.argsort(pts[:, 0] ** 2 + pts[:, 1] ** 2)[:JOINT_POINTS]]
+
+            pts = local()
+            if not np.any((np.abs(pts[:, 0]) > 1e-9) & (np.abs(pts[:, 1]) > 1e-9)):
+                # one refit off the axes gives the cross term (the axes give the rest)
+                ta = float(np.clip(values[a] + sa, *byname[a].bounds))
+                tb = float(np.clip(values[b] + sb, *byname[b].bounds))
+                at({**values, a: ta, b: tb})
+                pts = local()
+            u, w, c = pts.T
+            X = np.stack([np.ones_like(u), u, w, u * u, u * w, w * w], axis=1)
+            if len(pts) < 6 or np.linalg.matrix_rank(X) < 6:
+                continue
+            coef, *_ = np.linalg.lstsq(X, c, rcond=None)
+            # the region the readings allow (Δχ² ≤ 4 infl on the quadratic, ≈ 2 σ) within the
+            # properties' bounds: its extent in each
+            lo_a, hi_a = byname[a].bounds
+            lo_b, hi_b = byname[b].bounds
+            U, W = np.meshgrid(np.linspace((lo_a - values[a]) / sa, (hi_a - values[a]) / sa, 201),
+                               np.linspace((lo_b - values[b]) / sb, (hi_b - values[b]) / sb, 201), indexing="ij")
+            q = coef[3] * U * U + coef[4] * U * W + coef[5] * W * W + coef[1] * U + coef[2] * W
+            ok = q <= q.min() + 4.0 * infl
+            rng = {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
+                   b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
+            Hm = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
+            S = 2.0 * infl * np.linalg.inv(Hm) if Hm[0, 0] > 0 and np.linalg.det(Hm) > 0 else None
+            if S is None or sa * math.sqrt(S[0, 0]) >= hi_a - lo_a or sb * math.sqrt(S[1, 1]) >= hi_b - lo_b:
+                # a ridge (or a saddle: the quadratic says nothing there): the refits themselves
+                # within Δχ² = 4 infl of the best give the values the readings allow
+                near = pts[pts[:, 2] <= pts[:, 2].min() + 4.0 * infl * (1 + 1e-9)]
+                rng = {n: (float(values[n] + s_ * near[:, k].min()), float(values[n] + s_ * near[:, k].max()))
+                       for k, (n, s_) in enumerate(((a, sa), (b, sb)))}
+                out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}, "range": rng}
+                continue
+            out[(a, b)] = {"rho": float(S[0, 1] / math.sqrt(S[0, 0] * S[1, 1])),
+                           "sigma": {a: sa * math.sqrt(S[0, 0]), b: sb * math.sqrt(S[1, 1])}, "range": rng}
+    return out
 
 
 def _geo(fit, hid: str, name: str, default: float) -> tuple[float, float | None]:
@@ -725,6 +842,15 @@ class AperturePlateHypothesis(PlateHypothesis):
         c = o.centre_mm
         gap, gse = _geo(fit, cls.id, "gap_mm", PLATE_GAP_MM)
         out = ""
+        for pair, j in (getattr(fit, "hypothesis_data", None) or {}).get("joint", {}).get(cls.id, {}).items():
+            a, b = pair.split("|")
+            if j["rho"] is None:
+                span_ = "; ".join(f"{n} {_g(lo)} to {_g(hi)}" for n, (lo, hi) in j.get("range", {}).items())
+                out += (f"# hypothesis: {a} and {b} trade off: these readings cannot tell them apart"
+                        + (f"; Δχ² ≤ 4 allows {span_}" if span_ else "") + "\n")
+            elif abs(j["rho"]) >= 0.7:
+                out += (f"# hypothesis: {a} and {b} trade off (correlation {j['rho']:+.2f}): their "
+                        "uncertainties below are the joint ones\n")
         if "interior_reflectance" in geo:
             val, val_se = geo["interior_reflectance"]
             out += ("materials:   # hypothesis: the cavity's inside (the ceiling over the plate), "

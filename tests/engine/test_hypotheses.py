@@ -164,11 +164,38 @@ def test_profile_recovers_a_quadratic_minimum_and_its_curvature():
         def regeometry(ir, lighting, values):
             return values["gap_mm"]
 
-    ir, fit, prob, n = profile_geometry(H, 20.0, "L", lambda x: (None, R(x)), R(20.0), None)
+    ir, fit, prob, n = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert n == 1 and ir == pytest.approx(37.0)
     assert fit.values["hypothesis.toy.gap_mm"] == pytest.approx(37.0)
     assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(0.5)
     assert fit.hypothesis_data["geometry"]["toy"]["gap_mm"][1] == pytest.approx(0.5)
+
+
+def test_each_profile_point_starts_from_the_hypothesis_refit():
+    """Every refit of the profile starts from the hypothesis' own refit (its parameter values)."""
+    class R:
+        def __init__(self, x):
+            self.chi2, self.dof, self.values, self.stderr, self.x = 4 * (x - 37.0) ** 2 + 50.0, 60, {}, {}, x
+
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return [GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0))]
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return values["gap_mm"]
+
+    starts = []
+
+    def solve_on(x, start):
+        starts.append((x, start.x))
+        return None, R(x)
+
+    profile_geometry(H, 20.0, "L", solve_on, R(20.0), None)
+    assert starts == [(5.0, 20.0), (45.0, 20.0), (80.0, 20.0), (pytest.approx(37.0), 20.0)]
 
 
 def test_a_flat_profile_is_not_pinned():
@@ -187,7 +214,7 @@ def test_a_flat_profile_is_not_pinned():
         def regeometry(ir, lighting, values):
             return values["gap_mm"]
 
-    _, fit, _, _ = profile_geometry(H, 20.0, "L", lambda x: (None, R(x)), R(20.0), None)
+    _, fit, _, _ = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert "hypothesis.toy.gap_mm" not in fit.stderr
     assert fit.hypothesis_data["geometry"]["toy"]["gap_mm"][1] is None
 
@@ -259,3 +286,106 @@ def test_a_rough_plate_at_a_profiled_height_is_written_as_rough_glass(tmp_path):
     d = compile_booth(f).diffuser
     assert d.scattering == {"type": "roughness", "roughness": 0.3}
     assert d.z_mm == pytest.approx(620 - 13 - 45)
+
+
+def test_the_rough_plate_hypothesis_grid_is_shipped():
+    # every roughness the diffuser_plate hypothesis profiles is read from a table, not simulated
+    from lbscene.engine.light.rough_slab import SHIPPED_PLATES
+    from lbscene.engine.loop.hypotheses import PLATE_ROUGHNESSES, ROUGH_PLATE_IOR
+
+    for r in PLATE_ROUGHNESSES:
+        assert (r, ROUGH_PLATE_IOR) in SHIPPED_PLATES
+
+
+def test_standard_errors_added_later_are_those_of_the_full_solve(tmp_path):
+    """A fit solved without its standard errors (a profile point) gets, once kept, the same
+    errors and correlations as the fit solved with them."""
+    import shutil
+
+    from lbscene.engine.loop.diagnose import noise_model
+    from lbscene.engine.loop.fit import FitProblem, resolve_free_parameters
+    from lbscene.engine.loop.measurements import load_measurements
+    from lbscene.engine.truth.synthetic import synthesize
+
+    booth = tmp_path / "booth"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "data" / "hidden-effect-booth", booth)
+    m = synthesize(booth, tmp_path / "m", lighting="FL", truth_effects={"interreflection": {}},
+                   noise_percent=1.0)
+    meas = load_measurements(Path(m))
+    noise = noise_model(meas)
+    effects = {k: dict(v) for k, v in meas.ir.effects.items()}
+    free = resolve_free_parameters(meas.ir, meas.lighting, effects, meas.known_output_groups,
+                                   str(meas.booth_file))
+    full = FitProblem(meas, effects, free, noise.percent, noise.spectral_percent, {}).solve()
+    prob = FitProblem(meas, effects, free, noise.percent, noise.spectral_percent, {})
+    lazy = prob.solve(errors=False)
+    assert lazy.errors_pending and not lazy.stderr
+    assert lazy.chi2 == pytest.approx(full.chi2, rel=1e-12)
+    prob.add_errors(lazy)
+    assert not lazy.errors_pending
+    assert lazy.stderr.keys() == full.stderr.keys() and lazy.stderr
+    for k, v in full.stderr.items():
+        assert lazy.stderr[k] == pytest.approx(v, rel=1e-9)
+    np.testing.assert_allclose(lazy.correlation, full.correlation, atol=1e-9)
+
+
+def test_two_properties_that_trade_off_get_their_joint_uncertainty():
+    """χ² = 10 + dᵀ C⁻¹ d with σ = (4, 20) and correlation −0.8 about (37, 200): the 1-D profiles'
+    conditional uncertainties are σ √(1 − ρ²); the joint profile gives back the marginal σ and ρ."""
+    C = np.array([[16.0, -0.8 * 4 * 20], [-0.8 * 4 * 20, 400.0]])
+    Ci = np.linalg.inv(C)
+
+    class R:
+        def __init__(self, v):
+            d = np.array([v["gap_mm"] - 37.0, v["opening_v_mm"] - 200.0])
+            self.chi2, self.dof, self.values, self.stderr = 10.0 + float(d @ Ci @ d), 60, {}, {}
+
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return [GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
+                    GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0))]
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return dict(values)
+
+    _, fit, _, _ = profile_geometry(H, {"opening_v_mm": 150.0, "gap_mm": 20.0}, "L",
+                                    lambda v, start: (None, R(v)), R({"opening_v_mm": 150.0, "gap_mm": 20.0}), None)
+    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    assert j["rho"] == pytest.approx(-0.8, abs=1e-6)
+    assert j["sigma"]["gap_mm"] == pytest.approx(4.0, rel=1e-6)
+    assert j["sigma"]["opening_v_mm"] == pytest.approx(20.0, rel=1e-6)
+    assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(4.0, rel=1e-6)
+
+
+def test_two_properties_on_a_ridge_are_an_unidentified_combination():
+    """χ² = 10 + ((θ_a − 20)/4 + (θ_b − 150)/20)², profiled from (150, 20): only the combination is
+    pinned.  The pair is said to be unidentified, with the extent of the refits within Δχ² = 4
+    of the best: the profile's point (150, 20) and the diagonal one (170, 24), Δχ² = 4."""
+    class R:
+        def __init__(self, v):
+            t = (v["gap_mm"] - 20.0) / 4.0 + (v["opening_v_mm"] - 150.0) / 20.0
+            self.chi2, self.dof, self.values, self.stderr = 10.0 + t * t, 60, {}, {}
+
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return [GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
+                    GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0))]
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return dict(values)
+
+    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
+    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
+    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    assert j["rho"] is None and j["sigma"] == {"opening_v_mm": None, "gap_mm": None}
+    assert "hypothesis.toy.gap_mm" not in fit.stderr
+    (olo, ohi), (glo, ghi) = j["range"]["opening_v_mm"], j["range"]["gap_mm"]
+    assert (olo, ohi) == pytest.approx((150.0, 170.0)) and (glo, ghi) == pytest.approx((20.0, 24.0))

@@ -5,7 +5,7 @@ The truth is Mitsuba 3, committed as data beside the script that rendered it
 other sizes, lamp layouts and plate heights than the validation scenes, each with hardware the
 booth file handed to the diagnosis does not declare — a black luminaire cavity (its occluders
 deleted and the ceiling declared in the walls' grey), a ceiling darker than declared, a rough
-plate (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
+plate (deleted), a plane mirror above each tube (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
 1 % seeded meter noise is added and ``compare`` runs on the edited booth.
 
 Every case states the verdicts the data allow; the truth must be in the verdict (named, or one
@@ -54,6 +54,8 @@ class Case:
     allowed: tuple[str, ...]
     seed: int = 0
     slow: bool = False
+    #: a known gap of the model on this truth (the case is expected to fail, and says why)
+    gap: str = ""
 
     def allows(self, verdict) -> bool:
         if str(verdict) in self.allowed:
@@ -69,6 +71,7 @@ class Case:
 _CAVITY = ("effect:aperture_occlusion", "section:occluders", "surface:ceiling=wall")
 _CEILING = ("surface:ceiling=wall",)
 _PLATE = ("effect:diffuser", "section:diffuser")
+_MIRROR = ("effect:reflector", "section:reflectors", "lamp:reflector")
 CASES = [
     Case("cavity-floor-known", "cavity-wide", "floor", _CAVITY, True, "aperture_occlusion",
          ("missing:aperture_occlusion",), slow=True),
@@ -91,6 +94,19 @@ CASES = [
     # a plate on the A3 sheet with the output fitted changes the level only: the fit takes it
     Case("rough-plate-a3-fitted", "rough-plate", "a3", _PLATE, False, "diffuser",
          ("missing:diffuser", "ambiguous:diffuser", "none"), slow=True),
+    # a plane mirror above each tube, facing down (deleted, and the lamps' reference to it)
+    # the booth with its mirrors declared is 0.7 % RMS off this truth (RMSE 1.22 % at 1 % noise,
+    # χ²/dof 1.49): no explanation reaches the noise on the floor grid
+    Case("mirror-floor-known", "mirror-above", "floor", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True,
+         gap="the reflector model is 0.7 % RMS off Mitsuba on this floor grid (declared mirrors: "
+             "χ²/dof 1.49): the verdict is 'unexplained'"),
+    Case("mirror-a3-known", "mirror-above", "a3", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True),
+    Case("mirror-floor-fitted", "mirror-above", "floor", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
+    Case("mirror-a3-fitted", "mirror-above", "a3", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
 ]
 
 
@@ -166,8 +182,11 @@ def yaml_effects(booth: Path) -> dict:
     return {k: dict(v or {}) for k, v in ((YAML(typ="safe").load(booth.read_text()) or {}).get("effects") or {}).items()}
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c.slow else c for c in CASES],
-                         ids=[c.id for c in CASES])
+def _marks(c: Case) -> list:
+    return ([pytest.mark.slow] if c.slow else []) + ([pytest.mark.xfail(reason=c.gap, strict=False)] if c.gap else [])
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=_marks(c)) for c in CASES], ids=[c.id for c in CASES])
 def test_hypothesis_on_independent_truth(case, tmp_path):
     if not (case.folder / f"truth-{case.grid}.csv").is_file():
         pytest.skip(f"no committed truth for {case.scene} ({case.grid})")

@@ -1,7 +1,8 @@
 """Render, or check, the Mitsuba truth of the hypothesis scenes in this folder (committed as data).
 
 Each scene is a booth folder whose ``booth.yaml`` declares the hardware the diagnosis will be
-handed *without* (a luminaire cavity, a ceiling of another reflectance, a rough plate) and whose
+handed *without* (a luminaire cavity, a ceiling of another reflectance, a rough plate,
+mirrors above the lamps) and whose
 ``effects:`` lists exactly the physics its truth includes.  The tests
 (``tests/engine/test_hypotheses_on_truth.py``) and the table
 (``benchmarks/hypothesis_truth_table.py``) read ``truth-a3.csv`` (the 55-point A3 sheet) and
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("cavity-wide", "ceiling-dark", "rough-plate")
+SCENES = ("cavity-wide", "ceiling-dark", "rough-plate", "mirror-above")
 GRIDS = ("a3", "floor")
 #: grids rendered per scene (a rough plate's truth costs half an hour a grid on 2 cores: A3 only)
 SCENE_GRIDS = {"rough-plate": ("a3",)}

@@ -33,6 +33,9 @@ __all__ = ["DiffuserEffect"]
 #: elements of one block of the rough plate's BTDF table (cells × directions × emitter points):
 #: about 128 MB of float64 at a time
 RADIANCE_BLOCK_ELEMENTS = 16_000_000
+#: rough plate radiances (per unit 1 − f_d) kept per forward-model cache: a fit varying only the
+#: plate's diffuse fraction or transmittance asks for the same few sets of directions again
+ROUGH_RADIANCE_MEMO = 8
 
 
 @register_effect
@@ -150,11 +153,19 @@ class DiffuserEffect(PhysicalEffect):
             descr.append(t.derived(spectral_key="diffuser", spectrum_factor=spec, kind="diffuser"))
             # per cell: (C, k*k*N) irradiance × area weight, incidence cosine, azimuth of the
             # light's propagation (away from the emitter)
-            E.append(((g.reshape(C, k * k, -1) * w[:, :, None]) * (1.0 - fd)).reshape(C, -1))
+            E.append((g.reshape(C, k * k, -1) * w[:, :, None]).reshape(C, -1))
             cos_i.append(np.clip(u[..., 2], 0.0, 1.0).reshape(C, -1))
             phi_p.append(np.arctan2(-u[..., 1], -u[..., 0]).reshape(C, -1))
 
         def radiance(dirs):
+            # linear in (1 − f_d): the BTDF sums, the costly part, are kept for the same
+            # directions and irradiances (a fit varying f_d or the plate's transmittance scale)
+            rough = float(d.scattering.get("roughness", -1.0))
+            key = (dirs, [rough, d.ior, len(descr)], *E, *cos_i, *phi_p)
+            return (1.0 - fd) * ctx.memo("rough_btdf", key, lambda: unit_radiance(dirs),
+                                         limit=ROUGH_RADIANCE_MEMO)
+
+        def unit_radiance(dirs):
             cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
             phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
             out = np.zeros(dirs.shape[:2] + (len(descr),))
