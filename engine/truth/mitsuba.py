@@ -381,12 +381,14 @@ class MitsubaTruth:
         if self.variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {self.variant!r}")
         self._refuse(self._refusals(meter=False))
-        d = ir.diffuser
+
+    def _plates_measured(self) -> None:
+        """Measure the rough plate and fit the opal medium (in the scalar variant, cached) before
+        a scene is built: building must not switch variants half-way."""
+        d = self.ir.diffuser
         if "diffuser" in self.effects and d is not None and d.scattering.get("type") == "roughness":
-            self._rough_plate_T(d)          # measured in the scalar variant, cached
+            self._rough_plate_T(d)
         if self._has_opal():
-            # fit the opal medium now, in the scalar variant (cached): rendering must not switch
-            # variants half-way through building a scene
             self._opal_interior()
 
     # ------------------------------------------------------------------ what cannot be said
@@ -659,6 +661,7 @@ class MitsubaTruth:
 
         if film_bands is None:
             film_bands = {"V": photopic_1nm()}
+        self._plates_measured()
         P = np.asarray(points, float)
         N = np.asarray(normals, float)
         # an opal plate's scattering medium needs the volumetric path tracer

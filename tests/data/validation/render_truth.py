@@ -50,7 +50,7 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
           "rough-cavity-45",
           # opal plates (faces matched to the air: the scattering layer alone)
-          "opal-black")
+          "opal-black", "opal-grey")
 #: the forward model's RMS deviation from the truth allowed per scene (percent, the truth's noise
 #: removed in quadrature): tests/engine/test_model_vs_truth.py and benchmarks/bench_truth.py
 THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "cavity-aperture": 1.5,
@@ -60,11 +60,11 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "ceiling-85": 1.0, "ceiling-85-spaced": 1.0, "mirror-strip": 1.0, "mirror-behind": 1.0,
                       # plates
                       "rough-cavity-45": 1.0,
-                      "opal-black": 1.0}
+                      "opal-black": 1.0, "opal-grey": 1.0}
 #: scenes whose truth covers some grids only (the others: every grid of
 #: ``engine.truth.validation.GRIDS``); the volumetric opal costs about 1 CPU-minute per receiver
 #: at 0.28 % (``llvm_ad_spectral``), so opal-black has the A3 sheet only so far
-SCENE_GRIDS = {"opal-black": ("a3",)}
+SCENE_GRIDS = {"opal-black": ("a3",), "opal-grey": ("a3",)}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.0015
