@@ -64,8 +64,9 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "rough-cavity-45": 1.0,
                       "opal-black": 1.0, "opal-grey": 1.0}
 #: scenes whose truth covers some grids only (the others: every grid of
-#: ``engine.truth.validation.GRIDS``); the volumetric opal costs about 1 CPU-minute per receiver
-#: at 0.28 % (``llvm_ad_spectral``), so opal-black has the A3 sheet only so far
+#: ``engine.truth.validation.GRIDS``); the volumetric opal plate costs 36 to 73 s of wall time per
+#: receiver at 0.28 % (``llvm_ad_spectral`` on a busy two-core machine), so the opal scenes have
+#: the A3 sheet only so far
 SCENE_GRIDS = {"opal-black": ("a3",), "opal-grey": ("a3",)}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
