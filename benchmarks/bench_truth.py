@@ -40,7 +40,7 @@ def _scenes():
     spec = importlib.util.spec_from_file_location("render_truth", VALIDATION / "render_truth.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    return mod.SCENES, mod.THRESHOLDS_PERCENT
+    return mod.SCENES, mod.THRESHOLDS_PERCENT, mod.grids_of
 
 
 def rows(repeat: int) -> list[tuple]:
@@ -48,11 +48,14 @@ def rows(repeat: int) -> list[tuple]:
     from lbscene.engine.light.forward import ForwardModel
     from lbscene.engine.truth.validation import GRIDS, compare_with_truth
 
-    scenes, limits = _scenes()
+    scenes, limits, grids_of = _scenes()
     out = []
     for scene in scenes:
         ir = compile_booth(VALIDATION / scene)
         for grid in GRIDS:
+            if grid not in grids_of(scene):
+                out.append((scene, grid, 0, *(float("nan"),) * 4, limits[scene], "not rendered", float("nan")))
+                continue
             if not (VALIDATION / scene / f"truth-{grid}.csv").is_file():
                 out.append((scene, grid, 0, *(float("nan"),) * 4, limits[scene], "no truth", float("nan")))
                 continue

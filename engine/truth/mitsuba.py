@@ -37,9 +37,10 @@ diffuser plate       a closed box of ``roughdielectric`` (GGX,
                      the declared ``ior`` and ``thickness_mm``; mid-plane at
                      ``z_mm``) (``diffuser`` on)
 opal plate           a closed box of smooth ``dielectric`` (declared ``ior``,
-                     ``thickness_mm``) filled with a non-absorbing
-                     ``homogeneous`` medium (Henyey–Greenstein phase), rendered
-                     with ``volpath`` (``diffuser`` on; scattering ``lambertian``)
+                     ``thickness_mm``; ``null`` for ior 1) filled with a
+                     non-absorbing ``homogeneous`` medium (Henyey–Greenstein
+                     phase), rendered with ``volpath`` (``diffuser`` on;
+                     scattering ``lambertian``)
 ===================  ==========================================================
 
 :math:`I(λ)` is the lamp's peak spectral intensity from the IR
@@ -80,6 +81,15 @@ The film is a ``specfilm`` whose band is :math:`V(λ)`, so
 
 .. math:: E_v = 683\\,\\mathrm{lm/W} \\cdot π \\int L(λ) V(λ)\\, dλ .
 
+Opal plates behind a smooth dielectric are expensive in a booth: next-event estimation cannot
+reach a lamp through a refracting face, so the lamps above the plate are found only when a sampled
+direction hits them.  A plate declared with ``ior: 1.0`` (a scattering layer whose faces are
+matched to the air) is a ``null`` box: ``volpath`` traces shadow rays through it and its medium,
+and every scattering event inside sees the lamps.  Booths render in ``scalar_spectral`` or in its
+vectorised twin ``llvm_ad_spectral`` (``variant``: the same path tracer as a wavefront on the
+CPU, several times faster per sample for the volumetric plate; it needs libLLVM, found through
+``DRJIT_LIBLLVM_PATH``); plates are always measured and their media fitted in the scalar variant.
+
 Mitsuba accumulates film samples in float32, so each call renders at most
 ``MAX_SPP_PER_CALL`` samples and ``passes`` calls with their own seeds are
 averaged; the spread of the passes gives the Monte Carlo standard error.
@@ -115,6 +125,11 @@ DISC_RADIUS_MM = 0.05
 #: disc lifted off the receiver point so that it never coincides with a booth surface
 DISC_LIFT_MM = 0.02
 VARIANT = "scalar_spectral"
+#: variants a booth may be rendered in: the scalar one (default) and its vectorised twin, the
+#: same spectral path tracer run as a wavefront on the CPU (LLVM; several times faster per
+#: sample for the volumetric opal plates).  Plates are always measured and fitted in
+#: :data:`VARIANT`, so that a booth's opal medium does not depend on the variant it renders in.
+VARIANTS = ("scalar_spectral", "llvm_ad_spectral")
 
 #: effects the provider represents (with the restrictions checked in ``_refusals``)
 SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusion", "spectral_filter",
@@ -123,11 +138,11 @@ SUPPORTED_EFFECTS = frozenset({"interreflection", "diffuser", "aperture_occlusio
                                "angular_profile", "detector_cosine_error"})
 
 
-def _mi():
+def _mi(variant: str = VARIANT):
     import mitsuba as mi
 
-    if mi.variant() != VARIANT:
-        mi.set_variant(VARIANT)
+    if mi.variant() != variant:
+        mi.set_variant(variant)
     return mi
 
 
@@ -172,6 +187,9 @@ PLATE_PASSES = 4
 PLATE_HALF_WIDTH_MM = 2000.0
 #: the opal medium's phase asymmetry is searched in [0, OPAL_G_MAX]
 OPAL_G_MAX = 0.95
+#: samples per pass of the opal medium's search (:func:`opal_medium`, :data:`PLATE_PASSES` passes):
+#: the plate's total normal transmittance to about ±0.001, the accuracy its booth truth inherits
+OPAL_FIT_SPP = 65536
 _PLATE_CACHE: dict = {}
 
 
@@ -281,7 +299,7 @@ def opal_medium(T: float, fd: float, ior: float, thickness_mm: float, *, iterati
                 "phase": {"type": "hg", "g": float(g)}}
 
     def total(g):
-        return float(_normalised_optics(bsdf, thickness_mm, [1.0], medium=medium(g), spp=16384)["T"][0])
+        return float(_normalised_optics(bsdf, thickness_mm, [1.0], medium=medium(g), spp=OPAL_FIT_SPP)["T"][0])
 
     lo, hi = 0.0, OPAL_G_MAX
     t_lo, t_hi = total(lo), total(hi)
@@ -343,11 +361,13 @@ class MitsubaTruth:
     allow_lamp_specific_occluders
         An occluder declared for some lamps only cannot exist physically; by default
         it is refused, with ``True`` it blocks every lamp (and inter-reflected light).
+    variant
+        The Mitsuba variant that renders (one of :data:`VARIANTS`, default :data:`VARIANT`).
     """
 
     def __init__(self, ir, lighting: str | None = None, *, effects: dict | None = None,
                  spp: int = 16384, passes: int = 4, seed: int = 0,
-                 allow_lamp_specific_occluders: bool = False):
+                 allow_lamp_specific_occluders: bool = False, variant: str | None = None):
         if not 1 <= spp <= MAX_SPP_PER_CALL:
             raise ValueError(f"spp must be in 1..{MAX_SPP_PER_CALL} (float32 film), got {spp}")
         if passes < 2:
@@ -357,7 +377,19 @@ class MitsubaTruth:
         self.effects = dict(ir.effects if effects is None else effects)
         self.spp, self.passes, self.seed = int(spp), int(passes), int(seed)
         self.allow_lamp_specific_occluders = allow_lamp_specific_occluders
+        self.variant = variant or VARIANT
+        if self.variant not in VARIANTS:
+            raise ValueError(f"variant must be one of {VARIANTS}, got {self.variant!r}")
         self._refuse(self._refusals(meter=False))
+
+    def _plates_measured(self) -> None:
+        """Measure the rough plate and fit the opal medium (in the scalar variant, cached) before
+        a scene is built: building must not switch variants half-way."""
+        d = self.ir.diffuser
+        if "diffuser" in self.effects and d is not None and d.scattering.get("type") == "roughness":
+            self._rough_plate_T(d)
+        if self._has_opal():
+            self._opal_interior()
 
     # ------------------------------------------------------------------ what cannot be said
     def _refusals(self, meter: bool) -> list[str]:
@@ -486,7 +518,7 @@ class MitsubaTruth:
             l_m, w_m = lamp.length_mm * 1e-3, lamp.width_mm * 1e-3
             return {
                 "type": "rectangle",
-                "to_world": _mi().ScalarTransform4f(
+                "to_world": _mi(self.variant).ScalarTransform4f(
                     _frame(ax, wdir, aim, p, lamp.length_mm / 2, lamp.width_mm / 2, 1.0).tolist()),
                 "emitter": {"type": "area", "radiance": _spectrum(I / (l_m * w_m))}}
         if lamp.kind == "bulb":
@@ -515,7 +547,7 @@ class MitsubaTruth:
         return out
 
     def _surfaces(self) -> dict:
-        mi = _mi()
+        mi = _mi(self.variant)
         out = {}
         for name, (v, t, bsdf) in self.surface_meshes().items():
             props = mi.Properties()
@@ -550,7 +582,7 @@ class MitsubaTruth:
                 cu, cv, su, sv = (u0 + u1) / 2, (v0 + v1) / 2, (u1 - u0) / 2, (v1 - v0) / 2
                 out[f"occluder_{o.id}_{k}"] = {
                     "type": "rectangle",
-                    "to_world": _mi().ScalarTransform4f(_frame(u, v, n, c + cu * u + cv * v, su, sv, 1.0)
+                    "to_world": _mi(self.variant).ScalarTransform4f(_frame(u, v, n, c + cu * u + cv * v, su, sv, 1.0)
                                                        .tolist()),
                     "bsdf": self._bsdf(refl)}
         return out
@@ -571,7 +603,7 @@ class MitsubaTruth:
             n, u = _unit(r.normal), _unit(r.u)
             out[f"mirror_{lamp.id}"] = {
                 "type": "rectangle",
-                "to_world": _mi().ScalarTransform4f(
+                "to_world": _mi(self.variant).ScalarTransform4f(
                     _frame(u, np.cross(n, u), n, np.asarray(r.centre, float), r.half[0], r.half[1], 1.0).tolist()),
                 "bsdf": {"type": "conductor", "material": "none",
                          "specular_reflectance": _spectrum(np.clip(refl.reflectance.array_1nm, 0.0, 1.0))}}
@@ -586,6 +618,17 @@ class MitsubaTruth:
         d = self.ir.diffuser
         return "diffuser" in self.effects and d is not None and d.scattering.get("type") == "lambertian"
 
+    def _opal_interior(self) -> dict:
+        """The opal plate's medium (:func:`opal_medium`, fitted in :data:`VARIANT`); ``LB603`` when
+        no non-absorbing layer has the declared transmittance and diffuse fraction."""
+        d = self.ir.diffuser
+        p = self.effects["diffuser"]
+        T = np.clip(d.transmittance.array_1nm * float(p.get("transmittance_scale", 1.0) or 1.0), 0, 1)
+        try:
+            return opal_medium(float(T[0]), float(d.scattering["diffuse_fraction"]), d.ior, d.thickness_mm)
+        except ValueError as exc:
+            self._refuse([str(exc)])
+
     def _diffuser(self) -> dict:
         d = self.ir.diffuser
         if "diffuser" not in self.effects or d is None:
@@ -595,15 +638,11 @@ class MitsubaTruth:
         centre = (d.centre_mm[0], d.centre_mm[1], d.z_mm)
         bsdf = plate_bsdf(d.scattering, d.ior)
         plate = {"type": "cube",
-                 "to_world": _mi().ScalarTransform4f(
+                 "to_world": _mi(self.variant).ScalarTransform4f(
                      _frame((1, 0, 0), (0, 1, 0), (0, 0, 1), centre, d.size_mm[0] / 2, d.size_mm[1] / 2,
                             d.thickness_mm / 2).tolist())}
         if d.scattering.get("type") == "lambertian":
-            try:
-                plate["interior"] = opal_medium(float(T[0]), float(d.scattering["diffuse_fraction"]), d.ior,
-                                                d.thickness_mm)
-            except ValueError as exc:
-                self._refuse([str(exc)])
+            plate["interior"] = self._opal_interior()
         else:
             # the declared total normal transmittance over the non-absorbing plate's: bulk absorption,
             # a factor on each of the two refractions
@@ -622,6 +661,7 @@ class MitsubaTruth:
 
         if film_bands is None:
             film_bands = {"V": photopic_1nm()}
+        self._plates_measured()
         P = np.asarray(points, float)
         N = np.asarray(normals, float)
         # an opal plate's scattering medium needs the volumetric path tracer
@@ -643,7 +683,7 @@ class MitsubaTruth:
             v = np.cross(n, u)
             scene[f"meter_disc_{i:05d}"] = {
                 "type": "disk",
-                "to_world": _mi().ScalarTransform4f(
+                "to_world": _mi(self.variant).ScalarTransform4f(
                     _frame(u, v, n, p + DISC_LIFT_MM * n, DISC_RADIUS_MM, DISC_RADIUS_MM, 1.0).tolist()),
                 "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 1.0}}}
             scene[f"meter_{i:05d}"] = {
@@ -664,7 +704,7 @@ class MitsubaTruth:
     def _render(self, P, N, film_bands: dict, scale, target_rel_error, max_passes):
         """Per receiver and film channel: mean × ``scale``, its standard error, passes used.
         The stopping rule looks at the worst channel."""
-        mi = _mi()
+        mi = _mi(self.variant)
         C = len(film_bands)
         mean, se = np.zeros((len(P), C)), np.zeros((len(P), C))
         used = np.zeros(len(P), int)

@@ -40,7 +40,7 @@ from typing import Callable
 
 import numpy as np
 
-from lbscene.engine.light.plates import opal_entry_relative, opal_exit_shape
+from lbscene.engine.light.plates import opal_depth, opal_entry_relative, opal_exit_shape, opal_regular_relative
 
 __all__ = ["ReferenceEngine", "TRUTH_PROVIDERS", "register_truth_provider", "get_truth_provider"]
 
@@ -466,6 +466,9 @@ class ReferenceEngine:
             # the non-absorbing rough slab's own T(0°)
             slab = rough_slab(float(d.scattering["roughness"]) ** 2, float(d.ior))
             return slab.transmittance(cos_i) / float(slab.transmittance(np.ones(1))[0])
+        if d.scattering.get("type") == "lambertian":
+            # an opal plate's unscattered light: Beer–Lambert along the refracted path
+            return opal_regular_relative(cos_i, d.ior, opal_depth(self.ir, self._diffuse_fraction()))
         return _fresnel_plate(cos_i, d.ior) / t0
 
     def _diffuse_fraction(self):
@@ -496,6 +499,7 @@ class ReferenceEngine:
             setattr(self, key, (pts, area, top))
         pts, area, top = getattr(self, key)
         T = np.clip(d.transmittance.array_1nm * diff.transmittance_scale, 0, 1)
+        tau = opal_depth(self.ir, fd)
         out = []
         for group, spec, e_top in top:
             exitance = fd * e_top                                  # W/m² per unit spectrum
@@ -508,7 +512,7 @@ class ReferenceEngine:
                 cos_r = np.maximum((u * n[:, None, :]).sum(-1), 0)
                 cos_s = np.maximum(u[..., 2], 0)           # plate emits downward (-z)
                 # the opal exit law: Lambertian times t(θ_o)/t_h (lbscene.engine.light.plates)
-                val = exitance[None] / np.pi * cos_s * opal_exit_shape(cos_s, d.ior) * cos_r / \
+                val = exitance[None] / np.pi * cos_s * opal_exit_shape(cos_s, d.ior, tau) * cos_r / \
                     (r * 1e-3) ** 2 * area
                 if m.any():
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
@@ -517,6 +521,7 @@ class ReferenceEngine:
         return out
 
     def _top_fresnel(self, pts, t0):
+        tau = opal_depth(self.ir, self._diffuse_fraction())
         saved = self.fx.pop("diffuser")
         out = []
         try:
@@ -530,7 +535,7 @@ class ReferenceEngine:
                 cos_r = np.maximum(-u[..., 2], 0)
                 val = src["w"][None] * cos_r / (r * 1e-3) ** 2
                 # light entering the opal layer: t(θ_i) (lbscene.engine.light.plates)
-                val = val * opal_entry_relative(cos_r, self.ir.diffuser.ior)
+                val = val * opal_entry_relative(cos_r, self.ir.diffuser.ior, tau)
                 if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
                     val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
                 val = val * _profile_factor(src, u)

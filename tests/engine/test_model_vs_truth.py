@@ -48,9 +48,11 @@ MAX_TRUTH_NOISE_PERCENT = 0.3
 KNOWN_GAPS: dict[tuple[str, str], str] = {
     ("rough-cavity-45", "a3"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
     ("rough-cavity-45", "floor"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
+    ("opal-black", "a3"): "opal plate (T 0.55, f_d 0.95, 3 mm, faces matched to the air) under tubes 50 mm above it in a black box: RMS 10.7 % (a3), the model high everywhere (+9.7 to +11.6 %).  The forward model follows its plate law (a direct integration of the law gives the same within 1.2 %), and the plate alone follows the law within 4 % to 70 deg (plate-optics/opal-n100-t055); the law is separable in entry and exit, where Mitsuba's layer (transport depth about 1.6, Henyey-Greenstein g 0.55) keeps the incoming direction (its radiance straight down from light entering at 40 deg is 17 % under the separable law's, relative to normal entry; forward and backward exits at 30 deg differ by 42 %).  Not the whole cause: a thicker layer (optical depth 7.4, g 0.44), nearly separable, read 10 % high too in a quick render",
+    ("opal-grey", "a3"): "opal plate (T 0.65, f_d 0.90, 2 mm, faces matched to the air) in a 35 % grey box: RMS 7.7 % (a3), the model high everywhere (+6.8 to +8.8 %); the same separable opal law as opal-black, the walls' light diluting the gap",
 }
 
-CASES = [(s, g) for s in RT.SCENES for g in GRIDS]
+CASES = [(s, g) for s in RT.SCENES for g in RT.grids_of(s)]
 
 
 def _case(scene, grid):
@@ -77,6 +79,7 @@ def _truth(scene, grid):
 
 def test_every_scene_has_a_threshold_and_a_booth():
     assert set(RT.THRESHOLDS_PERCENT) == set(RT.SCENES)
+    assert set(RT.SCENE_GRIDS) <= set(RT.SCENES) and all(set(g) <= set(GRIDS) for g in RT.SCENE_GRIDS.values())
     assert sorted(p.parent.name for p in VALIDATION.glob("*/booth.yaml")) == sorted(RT.SCENES)
 
 
@@ -153,6 +156,6 @@ def test_committed_truth_agrees_with_a_fresh_render():
                          capture_output=True, text=True, timeout=3000)
     assert out.returncode in (0, 1), out.stderr[-3000:]
     rows = json.loads(out.stdout)
-    assert len(rows) == 2 * len(GRIDS) * len(RT.SCENES)
+    assert len(rows) == 2 * len(CASES)
     bad = [r for r in rows if not r["agree"]]
     assert not bad and out.returncode == 0, bad

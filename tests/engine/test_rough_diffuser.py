@@ -143,7 +143,35 @@ def test_diffuse_light_crosses_a_rough_plate_with_its_hemispherical_transmittanc
     # an opal plate: diffuse light enters through its smooth top face, (1 − F(θ))/(1 − F(0)), and
     # the layer passes the part a + (1 − a) cos θ_t of it, averaged over the hemisphere (integrated here)
     F0 = R0
-    a = plates.OPAL_LAYER_CONSTANT
+    a = plates.opal_layer_constant(n)
     cos_t = np.sqrt(1 - (1 - mu ** 2) / n ** 2)
     opal = plates.plate_diffuse_light_factor(_ir_with(ir, type="lambertian", diffuse_fraction=1.0))
     assert opal == pytest.approx(np.sum(w * (1 - R) * (a + (1 - a) * cos_t) * mu) / (1 - F0), abs=1e-3)
+
+
+def test_the_opal_layer_constant_is_the_diffusion_extrapolation_length():
+    # a = z_b/(z_b + l) with z_b = 2A/3 l: faces matched to the air (no reflection inside, A = 1)
+    # give 2/(2 + 3); at n = 1.4 the boundary's A is 2.95 (R_eff = 0.493, Haskell et al. 1994)
+    assert plates.opal_layer_constant(1.0) == pytest.approx(0.4, abs=1e-6)
+    A = 2.95
+    assert plates.opal_layer_constant(1.4) == pytest.approx(2 * A / (2 * A + 3), abs=2e-3)
+
+
+def test_an_opal_plate_scatters_the_regular_light_it_loses_at_oblique_incidence():
+    # Beer–Lambert along the path: at n = 1 the unscattered part is e^{-τ/μ}, τ from (1 − f_d) T
+    T, fd = 0.6, 0.9
+    tau = plates.opal_optical_depth((1 - fd) * T, 1.0)
+    assert tau == pytest.approx(-np.log(0.06), rel=1e-9)
+    mu = np.array([1.0, 0.5, 0.2])
+    np.testing.assert_allclose(plates.opal_regular_relative(mu, 1.0, tau), np.exp(-tau / mu) / np.exp(-tau),
+                               rtol=1e-9)
+    # ... and what it loses is scattered: 1 − e^{-τ/μ} of the light, relative to normal incidence
+    a = 0.4
+    np.testing.assert_allclose(plates.opal_entry_relative(mu, 1.0, tau),
+                               (1 - np.exp(-tau / mu)) / (1 - np.exp(-tau)) * (a + (1 - a) * mu), rtol=1e-6)
+    # a smooth face: the regular part is a clear slab's with the layer inside (closed form at 0°)
+    n = 1.5
+    r0 = ((n - 1) / (n + 1)) ** 2
+    tau = plates.opal_optical_depth(0.05, n)
+    e = np.exp(-tau)
+    assert (1 - r0) ** 2 * e / (1 - r0 ** 2 * e ** 2) == pytest.approx(0.05, rel=1e-9)

@@ -23,7 +23,7 @@ from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel
                                                   PhysicalEffect)
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import (OpalEntryWeight, diffuser_fraction, diffuser_rect,
-                                         diffuser_transmittance_1nm, is_rough, opal_exit_shape,
+                                         diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
                                          plate_lobe_footprint_mm, plate_slab, reference_transmittance,
                                          slab_relative)
 
@@ -89,14 +89,17 @@ class DiffuserEffect(PhysicalEffect):
             # every path through the plate is the directional source's (secondary_sources)
             return [PathChannel(1.0 - hit, None, None)]
 
+        fd = diffuser_fraction(ir, p)
+
         def angular():
             d = rx[:, None, :] - es.points_mm[None, :, :]
             cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-            return slab_relative(ir, cos_i)
+            return slab_relative(ir, cos_i, fd)
 
         rough = float(ir.diffuser.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
-        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior, rough]), angular)
-        fd = diffuser_fraction(ir, p)
+        # an opal plate's regular part depends on its optical depth, i.e. on the diffuse fraction
+        opal = fd if ir.diffuser.scattering.get("type") == "lambertian" else -1.0
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior, rough, opal]), angular)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", diffuser_transmittance_1nm(ctx, p)),
                 PathChannel(1.0 - hit, None, None)]
@@ -203,9 +206,10 @@ class DiffuserEffect(PhysicalEffect):
         pts, w = quad_subpoints(polys, 2)
         top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
         up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
-        # light arriving on the top side: cos-weighted and reduced by the top face's Fresnel
-        # transmittance relative to normal incidence (opal_entry_relative)
-        terms = direct(top, up, exclude=(cls.id,), incidence_weight=OpalEntryWeight(d.ior))
+        # light arriving on the top side: cos-weighted and weighted by the part of it the layer
+        # scatters through, relative to normal incidence (opal_entry_relative)
+        tau = opal_depth(ir, fd)
+        terms = direct(top, up, exclude=(cls.id,), incidence_weight=OpalEntryWeight(d.ior, tau))
         T = diffuser_transmittance_1nm(ctx, p)
         exit_, descr = [], []
         for t in terms:
@@ -220,7 +224,7 @@ class DiffuserEffect(PhysicalEffect):
         def radiance(dirs):
             # the scattered light leaves through the bottom face: (1 − F(θ_o)) / (1 − F_h)
             # times a Lambertian emitter's radiance M/π (plates.opal_exit_shape)
-            g = opal_exit_shape(np.clip(-dirs[..., 2], 0.0, 1.0), ior)        # (C, R)
+            g = opal_exit_shape(np.clip(-dirs[..., 2], 0.0, 1.0), ior, tau)   # (C, R)
             return g[..., None] * (M[:, None, :] / np.pi)
 
         return out + [DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)), radiance,

@@ -36,6 +36,13 @@ PLATES = {
                   "scattering": {"type": "lambertian", "diffuse_fraction": 0.95}},
     "opal-t040": {"thickness_mm": 2.0, "ior": 1.5, "transmittance": 0.40,
                   "scattering": {"type": "lambertian", "diffuse_fraction": 0.97}},
+    "opal-t070": {"thickness_mm": 4.0, "ior": 1.52, "transmittance": 0.70,
+                  "scattering": {"type": "lambertian", "diffuse_fraction": 0.85}},
+    # faces matched to the air (ior 1): the plates of the opal booth scenes (opal-black, opal-grey)
+    "opal-n100-t055": {"thickness_mm": 3.0, "ior": 1.0, "transmittance": 0.55,
+                       "scattering": {"type": "lambertian", "diffuse_fraction": 0.95}},
+    "opal-n100-t065": {"thickness_mm": 2.0, "ior": 1.0, "transmittance": 0.65,
+                       "scattering": {"type": "lambertian", "diffuse_fraction": 0.90}},
 }
 THETA_DEG = (0.0, 20.0, 40.0, 50.0, 60.0, 70.0, 80.0)
 SPP = 16384
