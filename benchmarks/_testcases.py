@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-__all__ = ["load_test_module"]
+__all__ = ["load_test_module", "case_rows"]
 
 
 def load_test_module(relpath: str, name: str):
@@ -21,3 +22,18 @@ def load_test_module(relpath: str, name: str):
     sys.modules[name] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def case_rows(module, cases: str | None, ready=lambda case: True):
+    """``(case, row)`` for the cases of a truth-table test module (``module.CASES``, run by
+    ``module.run_case(case, folder)`` in a folder of its own), in order; ``cases``: a
+    comma-separated subset of case ids (None: all).  A case ``ready`` refuses gives row None."""
+    want = set(cases.split(",")) if cases else None
+    for c in module.CASES:
+        if want and c.id not in want:
+            continue
+        if not ready(c):
+            yield c, None
+            continue
+        with tempfile.TemporaryDirectory() as td:
+            yield c, module.run_case(c, Path(td))

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from _testcases import load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
+from _testcases import case_rows, load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
 
 
 def _cases():
@@ -30,15 +29,10 @@ def main() -> int:
     ap.add_argument("--cases", help="comma-separated subset of case ids")
     a = ap.parse_args()
     T = _cases()
-    want = set(a.cases.split(",")) if a.cases else None
     print("| case | removed from the booth file | output | verdict | allowed | RMSE before % | "
           "RMSE after edit % | recurrence | diagnosis s | compare s |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for c in T.CASES:
-        if want and c.id not in want:
-            continue
-        with tempfile.TemporaryDirectory() as td:
-            r = T.run_case(c, Path(td))
+    for c, r in case_rows(T, a.cases):
         after = "—" if r["rmse_after"] is None else f"{r['rmse_after']:.2f} ({r['verdict_after']})"
         rec = "—" if r["recurrence"] is None else f"{r['recurrence']:.3f}"
         print(f"| {c.id} ({c.scene}, {c.grid}) | {', '.join(c.remove) or 'nothing'} | "

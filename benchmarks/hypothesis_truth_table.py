@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from _testcases import load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
+from _testcases import case_rows, load_test_module  # noqa: E402  (benchmarks/ is the script's folder)
 
 
 def _fitted(row) -> str:
@@ -38,18 +37,13 @@ def main() -> int:
     ap.add_argument("--cases", help="comma-separated subset of case ids")
     a = ap.parse_args()
     T = load_test_module("tests/engine/test_hypotheses_on_truth.py", "hypotheses_on_truth")
-    want = set(a.cases.split(",")) if a.cases else None
     print("| case | scene, grid | hardware not declared | output | verdict | truth in verdict | fitted (± σ) | "
           "RMSE before % | RMSE after pasting % (verdict) | compare s |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for c in T.CASES:
-        if want and c.id not in want:
-            continue
-        if not (c.folder / f"truth-{c.grid}.csv").is_file():
+    for c, r in case_rows(T, a.cases, ready=lambda c: (c.folder / f"truth-{c.grid}.csv").is_file()):
+        if r is None:
             print(f"| {c.id} | {c.scene}, {c.grid} | — | — | no committed truth | — | — | — | — | — |", flush=True)
             continue
-        with tempfile.TemporaryDirectory() as td:
-            r = T.run_case(c, Path(td))
         after = "—" if r["rmse_after"] is None else f"{r['rmse_after']:.2f} ({r['verdict_after']})"
         print(f"| {c.id} | {c.scene}, {c.grid} | {', '.join(c.remove)} | {'known' if c.known else 'fitted'} | "
               f"{r['verdict']} | {'yes' if r['allowed'] else 'NO'} | {_fitted(r)} | {r['rmse_before']:.2f} | "
