@@ -19,6 +19,35 @@ from lbscene.engine.loop.hypotheses import (HYPOTHESES, AperturePlateHypothesis,
 DATA = Path(__file__).resolve().parents[1] / "data"
 
 
+class _ToyFit:
+    """A refit at profile point ``x`` whose χ² is ``chi2(x)`` (60 degrees of freedom)."""
+
+    def __init__(self, x, chi2):
+        self.x, self.chi2, self.dof, self.values, self.stderr = x, chi2(x), 60, {}, {}
+
+
+def _toy_hypothesis(*params):
+    """A hypothesis ``toy`` profiling ``params`` (GeometryParameter); the profile point is the
+    value itself for one parameter, the dict of values for several."""
+    class H:
+        id = "toy"
+
+        @staticmethod
+        def geometry(ir, lighting):
+            return list(params)
+
+        @staticmethod
+        def regeometry(ir, lighting, values):
+            return values[params[0].name] if len(params) == 1 else dict(values)
+
+    return H
+
+
+#: the two properties the joint-profile tests fit together
+_PAIR = (GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
+         GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0)))
+
+
 def test_filter_basis_is_a_partition_of_unity_over_the_measured_range():
     B = filter_basis(12)
     assert B.shape == (471, 12)
@@ -149,20 +178,10 @@ def test_an_undeclared_diffusing_plate_is_among_the_explanations(tmp_path):
 def test_profile_recovers_a_quadratic_minimum_and_its_curvature():
     """χ²(θ) = 4 (θ − 37)² + 50 with 60 degrees of freedom (reduced χ² below 1): the parabola
     through the grid's best three gives θ̂ = 37 and σ = 1/√4 = 0.5 (Δχ² = 1)."""
-    class R:
-        def __init__(self, x):
-            self.chi2, self.dof, self.values, self.stderr, self.x = 4 * (x - 37.0) ** 2 + 50.0, 60, {}, {}, x
+    def R(x):
+        return _ToyFit(x, lambda x: 4 * (x - 37.0) ** 2 + 50.0)
 
-    class H:
-        id = "toy"
-
-        @staticmethod
-        def geometry(ir, lighting):
-            return [GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0))]
-
-        @staticmethod
-        def regeometry(ir, lighting, values):
-            return values["gap_mm"]
+    H = _toy_hypothesis(GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0)))
 
     ir, fit, prob, n = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert n == 1 and ir == pytest.approx(37.0)
@@ -173,20 +192,10 @@ def test_profile_recovers_a_quadratic_minimum_and_its_curvature():
 
 def test_each_profile_point_starts_from_the_hypothesis_refit():
     """Every refit of the profile starts from the hypothesis' own refit (its parameter values)."""
-    class R:
-        def __init__(self, x):
-            self.chi2, self.dof, self.values, self.stderr, self.x = 4 * (x - 37.0) ** 2 + 50.0, 60, {}, {}, x
+    def R(x):
+        return _ToyFit(x, lambda x: 4 * (x - 37.0) ** 2 + 50.0)
 
-    class H:
-        id = "toy"
-
-        @staticmethod
-        def geometry(ir, lighting):
-            return [GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0))]
-
-        @staticmethod
-        def regeometry(ir, lighting, values):
-            return values["gap_mm"]
+    H = _toy_hypothesis(GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0), 20.0, (1.0, 80.0)))
 
     starts = []
 
@@ -199,20 +208,10 @@ def test_each_profile_point_starts_from_the_hypothesis_refit():
 
 
 def test_a_flat_profile_is_not_pinned():
-    class R:
-        def __init__(self, x):
-            self.chi2, self.dof, self.values, self.stderr = 50.0, 60, {}, {}
+    def R(x):
+        return _ToyFit(x, lambda x: 50.0)
 
-    class H:
-        id = "toy"
-
-        @staticmethod
-        def geometry(ir, lighting):
-            return [GeometryParameter("gap_mm", (5.0, 20.0, 45.0), 20.0, (1.0, 45.0))]
-
-        @staticmethod
-        def regeometry(ir, lighting, values):
-            return values["gap_mm"]
+    H = _toy_hypothesis(GeometryParameter("gap_mm", (5.0, 20.0, 45.0), 20.0, (1.0, 45.0)))
 
     _, fit, _, _ = profile_geometry(H, 20.0, "L", lambda x, start: (None, R(x)), R(20.0), None)
     assert "hypothesis.toy.gap_mm" not in fit.stderr
@@ -335,22 +334,14 @@ def test_two_properties_that_trade_off_get_their_joint_uncertainty():
     C = np.array([[16.0, -0.8 * 4 * 20], [-0.8 * 4 * 20, 400.0]])
     Ci = np.linalg.inv(C)
 
-    class R:
-        def __init__(self, v):
-            d = np.array([v["gap_mm"] - 37.0, v["opening_v_mm"] - 200.0])
-            self.chi2, self.dof, self.values, self.stderr = 10.0 + float(d @ Ci @ d), 60, {}, {}
+    def chi2(v):
+        d = np.array([v["gap_mm"] - 37.0, v["opening_v_mm"] - 200.0])
+        return 10.0 + float(d @ Ci @ d)
 
-    class H:
-        id = "toy"
+    def R(v):
+        return _ToyFit(v, chi2)
 
-        @staticmethod
-        def geometry(ir, lighting):
-            return [GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
-                    GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0))]
-
-        @staticmethod
-        def regeometry(ir, lighting, values):
-            return dict(values)
+    H = _toy_hypothesis(*_PAIR)
 
     _, fit, _, _ = profile_geometry(H, {"opening_v_mm": 150.0, "gap_mm": 20.0}, "L",
                                     lambda v, start: (None, R(v)), R({"opening_v_mm": 150.0, "gap_mm": 20.0}), None)
@@ -365,22 +356,14 @@ def test_two_properties_on_a_ridge_are_an_unidentified_combination():
     """χ² = 10 + ((θ_a − 20)/4 + (θ_b − 150)/20)², profiled from (150, 20): only the combination is
     pinned.  The pair is said to be unidentified, with the extent of the refits within Δχ² = 4
     of the best: the profile's point (150, 20) and the diagonal one (170, 24), Δχ² = 4."""
-    class R:
-        def __init__(self, v):
-            t = (v["gap_mm"] - 20.0) / 4.0 + (v["opening_v_mm"] - 150.0) / 20.0
-            self.chi2, self.dof, self.values, self.stderr = 10.0 + t * t, 60, {}, {}
+    def chi2(v):
+        t = (v["gap_mm"] - 20.0) / 4.0 + (v["opening_v_mm"] - 150.0) / 20.0
+        return 10.0 + t * t
 
-    class H:
-        id = "toy"
+    def R(v):
+        return _ToyFit(v, chi2)
 
-        @staticmethod
-        def geometry(ir, lighting):
-            return [GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 150.0, (100.0, 300.0)),
-                    GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0))]
-
-        @staticmethod
-        def regeometry(ir, lighting, values):
-            return dict(values)
+    H = _toy_hypothesis(*_PAIR)
 
     v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
     _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
