@@ -376,6 +376,15 @@ def _store(root: Path, kind: str, key: str, out: np.ndarray, limit: int) -> None
         os.close(root_fd)
 
 
+def _table(kind: str, arrays: tuple, params: tuple, shape: tuple | None) -> np.ndarray | None:
+    """The shipped table of a computation, as float64, or None (none, turned off, or unsound)."""
+    tables = tables_dir()
+    if tables is None:
+        return None
+    hit = _load(tables / table_entry_name(kind, arrays, params), shape, MAX_TABLE_BYTES, touch=False)
+    return None if hit is None else hit.astype(np.float64)
+
+
 def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], np.ndarray],
                  shape: tuple | None = None, shipped: bool = False) -> np.ndarray:
     """``compute()``, or its earlier result for the same ``kind``, input ``arrays`` and ``params``.
@@ -385,20 +394,20 @@ def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], 
     read, or has another ``shape`` than expected, non-finite values or a non-numeric dtype
     (a damaged or foreign file under the right name), is recomputed; it is replaced only if
     it is the cache's own file (see the module's notes).  ``shipped``: also look among the
-    shipped tables (after the cache, before computing); a table is read as float64.
+    shipped tables (before the cache; a table is read as float64).
     """
     if _RECORD is not None and shipped:
         out = np.asarray(compute())
         _RECORD[table_entry_name(kind, arrays, params)] = out
         return out
-    if shipped and _KIND_RE.match(kind):
-        tables = tables_dir()
-        if tables is not None:
-            hit = _load(tables / table_entry_name(kind, arrays, params), shape, MAX_TABLE_BYTES, touch=False)
-            if hit is not None:
-                return hit.astype(np.float64)
+    if not _KIND_RE.match(kind):
+        return compute()
+    if shipped:
+        hit = _table(kind, arrays, params, shape)
+        if hit is not None:
+            return hit
     root = cache_dir()
-    if root is None or not _KIND_RE.match(kind):
+    if root is None:
         return compute()
     limit = max_bytes()
     key = _key(kind, arrays, params)
@@ -415,18 +424,15 @@ def cached_array(kind: str, arrays: tuple, params: tuple, compute: Callable[[], 
 
 def peek_array(kind: str, arrays: tuple, params: tuple, shape: tuple | None = None) -> np.ndarray | None:
     """The result :func:`cached_array` (with ``shipped=True``) would return without computing:
-    the cache's entry or the shipped table, as float64; None when neither has it (nothing is
+    the shipped table or the cache's entry, as float64; None when neither has it (nothing is
     computed, nothing written; while tables are being recorded, always None)."""
     if _RECORD is not None or not _KIND_RE.match(kind):
         return None
+    hit = _table(kind, arrays, params, shape)
+    if hit is not None:
+        return hit
     root = cache_dir()
-    if root is not None:
-        out = _load(root / kind / f"{_key(kind, arrays, params)}.npy", shape, max_bytes())
-        if out is not None:
-            return out.astype(np.float64, copy=False)
-    tables = tables_dir()
-    if tables is not None:
-        out = _load(tables / table_entry_name(kind, arrays, params), shape, MAX_TABLE_BYTES, touch=False)
-        if out is not None:
-            return out.astype(np.float64)
-    return None
+    if root is None:
+        return None
+    out = _load(root / kind / f"{_key(kind, arrays, params)}.npy", shape, max_bytes())
+    return None if out is None else out.astype(np.float64, copy=False)
