@@ -27,6 +27,20 @@ def _private_geometry_cache(tmp_path_factory):
         os.environ["LBSCENE_CACHE_DIR"] = old
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _lbscene_usd_schema():
+    """The lbscene USD schema registered before any test opens a stage of its own.
+
+    USD makes its schema registry once per process, at the first stage opened; a test that writes a
+    USD file with ``pxr`` directly would otherwise decide, by the order tests run in, whether a later
+    stage can apply the lbscene API schemas.  (lbscene itself registers the schema before it opens
+    any stage: tests/engine/test_geometry_files.py checks that in a fresh process.)
+    """
+    from lbscene.engine.scene.usd_stage import register_schema
+
+    register_schema()
+
+
 @pytest.fixture
 def minimal_booth(tmp_path) -> Path:
     """A writable copy of tests/data/minimal-booth."""

@@ -295,6 +295,11 @@ def _mesh_from_obj(path: Path, display: str) -> tuple[np.ndarray, np.ndarray]:
 def _meshes_from_usd(path: Path, display: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
     from pxr import Tf, Usd, UsdGeom
 
+    from .usd_stage import register_schema
+
+    # USD makes its schema registry once per process, at the first stage opened: the lbscene schema
+    # must be registered before, or the stage ``build`` writes later cannot apply its API schemas
+    register_schema()
     _check_mesh_size(path, display)
     try:
         stage = Usd.Stage.Open(str(path))

@@ -51,6 +51,33 @@ def test_usd_mesh_in_metres_converted_to_mm(minimal_booth):
     np.testing.assert_allclose(s.vertex_array, [[0, 0, 500], [100, 0, 500], [0, 100, 500]], atol=1e-4)
 
 
+def test_build_of_a_booth_with_usd_geometry_in_one_process(minimal_booth, tmp_path):
+    """Reading a USD mesh first must not keep the lbscene schema out of the stage ``build`` writes.
+
+    Run as a user runs it: one fresh ``lbscene build`` process (USD's schema registry is made once per
+    process, by the first stage opened).
+    """
+    import subprocess
+    import sys
+
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(str(minimal_booth / "prop.usda"))
+    UsdGeom.SetStageMetersPerUnit(stage, 0.001)
+    mesh = UsdGeom.Mesh.Define(stage, "/Prop")
+    mesh.CreatePointsAttr([Gf.Vec3f(0, 0, 10), Gf.Vec3f(100, 0, 10), Gf.Vec3f(0, 100, 10)])
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    stage.Save()
+    _add_geometry(minimal_booth, "  - {type: usd, id: prop, path: prop.usda, material: grey}\n")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "lbscene", "build", str(minimal_booth), "-o", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    text = next(out.rglob("*.usda")).read_text()
+    assert "LbsceneBoothAPI" in text and "lbscene:spectral:bandValues" in text
+
+
 def test_garbage_obj_is_a_located_error(minimal_booth):
     (minimal_booth / "bad.obj").write_bytes(b"this is not an obj file\n")
     _add_geometry(minimal_booth, "  - {type: obj, id: bad, path: bad.obj, material: grey}\n")
