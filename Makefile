@@ -24,13 +24,18 @@ venv: $(STAMP)
 demo: $(STAMP)
 	bash scripts/demo.sh
 
+# the suite runs on every core (pytest-xdist; at most 8 workers, or TEST_WORKERS), tests handed out
+# one by one as workers free up; `TEST_WORKERS=0 make test` runs it in one process
+TEST_WORKERS ?= auto
+PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --maxprocesses 8 --dist worksteal)
+
 test: $(STAMP)
 	bash scripts/install-test-deps.sh
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q $(PYTEST_PARALLEL)
 
 test-all: $(STAMP)
 	bash scripts/install-test-deps.sh
-	$(BIN)/pytest -q -m ""
+	$(BIN)/pytest -q -m "" $(PYTEST_PARALLEL)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py

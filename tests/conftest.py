@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
 import pytest
+
+# A command's output is tested as a pipe gives it to a user: no terminal width imposed.  (pytest-xdist's
+# workers set COLUMNS=80 and LINES=24; the tests that need a width set it themselves.)
+os.environ.pop("COLUMNS", None)
+os.environ.pop("LINES", None)
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"

@@ -71,3 +71,19 @@ def test_report_has_every_reading_the_version_and_a_date(run_cli, tmp_path):
     assert html.count("measurements-grid.csv:") == n_rows
     assert f"lbscene {__version__} · 20" in html
     assert f"<meta name='generator' content='lbscene {__version__}'>" in html
+
+
+def test_a_narrow_terminal_folds_table_cells_and_cuts_nothing():
+    """At 60 columns a table's long words (an effect's id, a verdict) are folded onto the next
+    line, never cut with "…": every id is still there, letter for letter, down its column."""
+    from lbscene.engine.light.effects.registry import available_effects
+
+    p = _run("effects", env={"COLUMNS": "60"})
+    assert p.returncode == 0, p.stderr
+    assert "…" not in p.stdout
+    assert max(len(line) for line in p.stdout.splitlines()) <= 60
+    first_column = "".join(line.split("│")[1].strip() for line in p.stdout.splitlines()
+                           if line.startswith("│"))
+    for effect_id in available_effects():
+        assert effect_id in first_column
+

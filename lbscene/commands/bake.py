@@ -129,7 +129,7 @@ def register(app: typer.Typer) -> None:
                                              help="Which comparison --cross-check runs."),
     ) -> None:
         """Bake spectral light products of a booth with Blender Cycles (env maps, irradiance)."""
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         from lbscene.bakers.executor import BakeTask, run_tasks
 
@@ -173,17 +173,17 @@ def register(app: typer.Typer) -> None:
                                    "quality": quality.value, "elapsed_s": round(elapsed, 2),
                                    "bakes": rows}, indent=2))
         else:
-            table = Table(title=f"{ir.booth_name}: Cycles bakes ({quality.value}) → {root}")
+            tab = table(title=f"{ir.booth_name}: Cycles bakes ({quality.value}) → {root}")
             for col in ("lighting", "status", "time s", "grid mean lx", "grid noise %", "sample lx (env)"):
-                table.add_column(col)
+                tab.add_column(col)
             for row in rows:
-                table.add_row(row["lighting"], row["status"], f"{row['time_s']:.1f}",
+                tab.add_row(row["lighting"], row["status"], f"{row['time_s']:.1f}",
                               f"{row.get('grid_mean_lx', float('nan')):.1f}",
                               f"{row.get('grid_noise_percent', float('nan')):.2f}",
                               f"{row.get('sample_lx_from_env', float('nan')):.1f}")
             from lbscene.commands.console import out_console
 
-            out_console().print(table)
+            out_console().print(tab)
             echo(f"{len(results) - len(failed)}/{len(results)} bakes ready ({elapsed:.1f} s)")
             for r in failed:
                 echo(f"error LB600: bake {r.task.label} failed: {r.error}", err=True)
@@ -201,7 +201,7 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     are what the bake's noise and the model's precision floor give (mean within 3 standard
     errors, χ² test); the table, the summary line, the JSON and the exit status all say it.
     """
-    from rich.table import Table
+    from lbscene.commands.console import table
 
     from lbscene.bakers.crosscheck import (CHI2_P_MIN, MEAN_SIGMAS, MODEL_PRECISION_PERCENT, MODES,
                                            cross_check_all)
@@ -222,18 +222,18 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
                                "elapsed_s": round(elapsed, 2), "cross_check": rows},
                               indent=2))
     else:
-        table = Table(title=f"{ir.booth_name}: Cycles / analytic model − 1 at "
+        tab = table(title=f"{ir.booth_name}: Cycles / analytic model − 1 at "
                             f"{rows[0]['points'] if rows else 0} grid points ({quality})")
         for col in ("lighting", "mode", "spp", "time s", "mean %", "max|·| %", "noise %", "mean/σ",
                     "χ² p", "result"):
-            table.add_column(col, justify="left" if col in ("lighting", "mode", "result") else "right")
+            tab.add_column(col, justify="left" if col in ("lighting", "mode", "result") else "right")
         for r in rows:
-            table.add_row(r["lighting"], "inter-refl." if r["mode"] == "interreflection" else r["mode"],
+            tab.add_row(r["lighting"], "inter-refl." if r["mode"] == "interreflection" else r["mode"],
                           str(r["samples"]), f"{r['time_s']:.1f}", f"{r['mean_diff_percent']:+.2f}",
                           f"{r['max_abs_diff_percent']:.2f}", f"{r['noise_rms_percent']:.2f}",
                           f"{r['mean_diff_sigmas']:+.1f}", f"{r['chi2_p']:.2g}",
                           "agree" if r["agrees"] else "DISAGREE")
-        out_console().print(table)
+        out_console().print(tab)
         echo(f"{len(rows) - len(failed)}/{len(rows)} checks agree (mean within {MEAN_SIGMAS:g} σ, "
              f"χ² p ≥ {CHI2_P_MIN:g}; σ: bake noise and the model's {MODEL_PRECISION_PERCENT:g} %) "
              f"({elapsed:.1f} s)")

@@ -26,7 +26,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compile a booth: scene IR, USD stage, bake jobs and render graphs, written atomically."""
         from rich.progress import SpinnerColumn, TextColumn, TimeElapsedColumn
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         from lbscene.engine.scene.build import build_booth
         from lbscene.engine.scene.compile import find_booth_file
@@ -49,12 +49,12 @@ def register(app: typer.Typer) -> None:
             d["elapsed_s"] = round(elapsed, 3)
             echo(json_text(d, indent=2))
             return
-        table = Table(title=f"{result.booth_name} → {result.out_dir}")
-        table.add_column("file")
-        table.add_column("sha256", style="dim")
+        tab = table(title=f"{result.booth_name} → {result.out_dir}")
+        tab.add_column("file")
+        tab.add_column("sha256", style="dim")
         for name, digest in result.files.items():
-            table.add_row(name, digest[:16])
-        out_console().print(table)
+            tab.add_row(name, digest[:16])
+        out_console().print(tab)
         echo(f"IR {result.ir_hash[:16]}  lightings: {', '.join(result.lightings)}  "
                    f"({elapsed:.2f} s)")
         for w in result.skipped_writers:

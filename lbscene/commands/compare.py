@@ -38,7 +38,7 @@ def diagnosis_progress(console, enabled: bool):
 
 
 def print_text(res, console) -> None:
-    from rich.table import Table
+    from lbscene.commands.console import table
 
     from lbscene.commands.console import styled
 
@@ -58,7 +58,7 @@ def print_text(res, console) -> None:
     if j["spectral"]:
         console.print(f"white-tile spectrum: RMSE {j['spectral']['rmse_percent']:.2f} % over the bands")
     if j["parameters"]:
-        t = Table(title="fitted parameters", title_justify="left")
+        t = table(title="fitted parameters", title_justify="left")
         for c in ("parameter", "value", "std. error", "bounds"):
             t.add_column(c, justify="right" if c != "parameter" else "left")
         for p in j["parameters"]:
@@ -69,7 +69,7 @@ def print_text(res, console) -> None:
         console.print(styled(("warning:", "yellow"), f" {w}"))
     if n:
         worst = sorted(j["residuals"], key=lambda r: -abs(r["residual_percent"]))[:5]
-        t = Table(title="largest residuals", title_justify="left")
+        t = table(title="largest residuals", title_justify="left")
         for c in ("x mm", "y mm", "z mm", "facing", "measured lx", "model lx", "residual %"):
             t.add_column(c, justify="right")
         for r in worst:
@@ -80,7 +80,7 @@ def print_text(res, console) -> None:
     if d is None:
         return
     if d.suspects:
-        t = Table(title="suspects (refit with each effect the booth does not enable)", title_justify="left")
+        t = table(title="suspects (refit with each effect the booth does not enable)", title_justify="left")
         for c in ("effect", "RMSE after %", "score ΔBIC", "+params", "to noise", "χ² gain lx / spectrum",
                   "fitted"):
             t.add_column(c, justify="left" if c in ("effect", "fitted") else "right")
@@ -101,7 +101,7 @@ def print_text(res, console) -> None:
         console.print("held at the booth's values (these data cannot pin them): " + ", ".join(d.held),
                       style="dim")
     if res.outliers:
-        t = Table(title="outlying readings (far from the model and from their neighbours)", title_justify="left")
+        t = table(title="outlying readings (far from the model and from their neighbours)", title_justify="left")
         for c in ("file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"):
             t.add_column(c, justify="left" if c == "file:line" else "right")
         for o in res.outliers:
@@ -131,7 +131,7 @@ def print_text(res, console) -> None:
                       "items updated by id; effects: replaced):")
         console.print(d.snippet, markup=False, highlight=False)
     if res.plan is not None and res.plan.points:
-        t = Table(title="measure next (where the candidates disagree most)", title_justify="left")
+        t = table(title="measure next (where the candidates disagree most)", title_justify="left")
         for c in ("x mm", "y mm", "z mm", "facing", *[f"{c} lx" for c in res.plan.candidates], "spread %"):
             t.add_column(c, justify="right")
         for p in res.plan.points:

@@ -26,7 +26,7 @@ def _fmt(x, nd=1) -> str:
 def print_text(res, console) -> None:
     """The result as rich tables on lbscene's literal console (user text is never parsed as
     markup; control characters show as escapes); styles come from :func:`styled` parts."""
-    from rich.table import Table
+    from lbscene.commands.console import table
 
     from .console import styled
 
@@ -44,7 +44,7 @@ def print_text(res, console) -> None:
                      if res.measurements else ""))
     for n in res.notes:
         console.print(f"note: {escape(n)}", style="dim")
-    t = Table(title="lightings (forward model with the booth's effects)", title_justify="left")
+    t = table(title="lightings (forward model with the booth's effects)", title_justify="left")
     for c in ("lighting", "standard", "E sample lx", "uniformity", "x, y", "CCT K", "Duv", "Ra",
               "Rf 2017", "TM-30 Rf/Rg", "verdict"):
         t.add_column(c, justify="left" if c in ("lighting", "standard", "verdict", "x, y") else "right")
@@ -66,7 +66,7 @@ def print_text(res, console) -> None:
                 console.print(f"  {escape(n)}", style="dim")
         if not lc.checks:
             continue
-        ct = Table(title=f"{escape(lc.name)}: {escape(STANDARD_TITLES.get(lc.standard, lc.standard))}",
+        ct = table(title=f"{escape(lc.name)}: {escape(STANDARD_TITLES.get(lc.standard, lc.standard))}",
                    title_justify="left")
         for col in ("check", "source", "figure", "requirement", "verdict"):
             ct.add_column(col, justify="right" if col == "figure" else "left")

@@ -2,8 +2,11 @@
 
 * On a terminal: rich tables and live progress bars (on stderr).
 * Piped or redirected: tables as wide as they need (``$COLUMNS`` if set, else 200
-  characters; cells wrap instead of being cut with "…"), and progress as plain lines,
+  characters), and progress as plain lines,
   one per step, on stderr — a log keeps them, a pipe is not filled with escape codes.
+* At any width, a table's cells wrap, and a word too long for its column is folded onto the
+  next line, never cut with "…" (:func:`table`): a verdict such as ``DISAGREE`` or a sample's
+  name is read whole on an 80-column terminal too.
 * User text is shown as it is written: the consoles parse no rich markup and no emoji codes
   in strings (a sample named ``[/link]`` is printed, not parsed), and control characters are
   shown as escapes (:func:`lbscene.engine.files.textsafe.printable`); styles are given as ``style=``
@@ -16,7 +19,7 @@ import os
 import sys
 import time
 
-__all__ = ["out_console", "err_console", "progress", "PlainProgress", "echo", "styled"]
+__all__ = ["out_console", "err_console", "table", "progress", "PlainProgress", "echo", "styled"]
 
 #: Width of tables written to a pipe or a file (no terminal to fit).
 PIPED_WIDTH = 200
@@ -45,6 +48,19 @@ def _safe_console(**kw):
             return super().render_str(printable(text), **options)
 
     return _LiteralConsole(markup=False, emoji=False, **kw)
+
+
+def table(*args, **kw):
+    """A :class:`rich.table.Table` whose columns fold a word too long for them instead of cutting
+    it with "…" (a column's own ``overflow=`` still wins)."""
+    from rich.table import Table
+
+    class _FoldingTable(Table):
+        def add_column(self, *a, **k):
+            k.setdefault("overflow", "fold")
+            return super().add_column(*a, **k)
+
+    return _FoldingTable(*args, **kw)
 
 
 def out_console():

@@ -13,7 +13,7 @@ def register(app: typer.Typer) -> None:
     @app.command("effects")
     def effects(format: Format = typer.Option(Format.text, "--format", help="text or json.")) -> None:
         """List the effects a booth's `effects:` section can enable (built-ins and plugins)."""
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         from lbscene.engine.light.effects.registry import available_effects
 
@@ -30,7 +30,7 @@ def register(app: typer.Typer) -> None:
         if format is Format.json:
             echo(json_text(rows, indent=2, default=str))
             return
-        t = Table(title="registered effects (enable under `effects:` in a booth file)", title_justify="left")
+        t = table(title="registered effects (enable under `effects:` in a booth file)", title_justify="left")
         t.add_column("id")
         t.add_column("kind")
         t.add_column("what it models")

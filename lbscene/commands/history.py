@@ -20,7 +20,7 @@ def register(app: typer.Typer) -> None:
         format: Format = typer.Option(Format.text, "--format", help="text or json."),
     ) -> None:
         """Print the compare history of a measurement set (and plot it with --plot)."""
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         from lbscene.engine.loop.history import plot_history, read_history
 
@@ -53,7 +53,7 @@ def register(app: typer.Typer) -> None:
         if not entries:
             con.print(f"no history yet ({hp} does not exist): run `lbscene compare {measurements}`")
             return
-        t = Table(title=f"history of {measurements}", title_justify="left")
+        t = table(title=f"history of {measurements}", title_justify="left")
         for c in ("step", "time", "what changed", "effects", "RMSE %", "noise %", "verdict", ""):
             t.add_column(c, justify="right" if c in ("step", "RMSE %", "noise %") else "left")
         top = max((e.get("rmse_percent") or 0) for e in entries) or 1.0

@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
         allow_path: Optional[List[Path]] = allow_path_option(),
     ) -> None:
         """Propose extra readings (positions, orientations) where tied candidates differ most."""
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         from lbscene.commands.compare import diagnosis_progress
         from lbscene.engine.loop.compare import plan_for, run_compare
@@ -59,7 +59,7 @@ def register(app: typer.Typer) -> None:
         if p is None or not p.points:
             con.print("nothing to plan: there are no competing explanations to separate")
             return
-        t = Table(title=f"measure next: {', '.join(p.candidates)}", title_justify="left")
+        t = table(title=f"measure next: {', '.join(p.candidates)}", title_justify="left")
         for c in ("x mm", "y mm", "z mm", "facing", "kind", *[f"{c} lx" for c in p.candidates], "spread %"):
             t.add_column(c, justify="right")
         for q in p.points:

@@ -164,18 +164,18 @@ def register(app: typer.Typer) -> None:
         if format is Format.json:
             echo(json_text(result, indent=2))
             return
-        from rich.table import Table
+        from lbscene.commands.console import table
 
-        table = Table(title=f"{job.ir.booth_name} / {job.graph['lighting']} / {job.sample.name}")
+        tab = table(title=f"{job.ir.booth_name} / {job.graph['lighting']} / {job.sample.name}")
         for col in ("view", "illum °", "view °", "aspec °", "sample lx", "out of gamut"):
-            table.add_column(col, justify="right" if col != "view" else "left")
+            tab.add_column(col, justify="right" if col != "view" else "left")
         for f in frames:
             r = f.info.get("realised") or {}
             og = f.out_of_gamut or {}
-            table.add_row(f.view, f"{r.get('illumination_deg', 0):.1f}", f"{r.get('viewing_deg', 0):.1f}",
+            tab.add_row(f.view, f"{r.get('illumination_deg', 0):.1f}", f"{r.get('viewing_deg', 0):.1f}",
                           f"{r.get('aspecular_deg', 0):.1f}", f"{f.info.get('sample_illuminance_lx', 0):.0f}",
                           f"{og.get('pixels', 0)} px ({100 * og.get('fraction', 0):.1f} %, max {og.get('max_excess', 0):.3f})")
-        out_console().print(table)
+        out_console().print(tab)
         if job.diffuse == "analytic" and job.bake_note:
             echo(f"note: diffuse light is analytic: {job.bake_note}; run `lbscene bake` for baked "
                        "lighting", err=True)

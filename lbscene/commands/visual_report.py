@@ -49,13 +49,13 @@ def register(app: typer.Typer) -> None:
         if format is Format.json:
             echo(json_text(stats, indent=1))
             return
-        from rich.table import Table
+        from lbscene.commands.console import table
 
         def num(v, fmt: str = "{:.2f}") -> str:
             # a statistic the data cannot give (one repeat, one observer, one case) is None
             return "—" if v is None else fmt.format(v)
 
-        t = Table(title=f"session {stats['session']}: {stats['responses']} responses, "
+        t = table(title=f"session {stats['session']}: {stats['responses']} responses, "
                         f"{len(stats['observers'])} observers")
         texture_cases = any(c["attribute"] != "colour" for c in stats["cases"])
         cols = ["lighting", "geometry", "sample"] + (["attribute"] if texture_cases else []) + [
