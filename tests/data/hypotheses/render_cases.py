@@ -1,8 +1,8 @@
 """Render, or check, the Mitsuba truth of the hypothesis scenes in this folder (committed as data).
 
 Each scene is a booth folder whose ``booth.yaml`` declares the hardware the diagnosis will be
-handed *without* (a luminaire cavity, a ceiling of another reflectance, a rough plate,
-mirrors above the lamps) and whose
+handed *without* (a luminaire cavity, a ceiling of another reflectance, walls lighter than
+declared, a rough plate, mirrors above the lamps) and whose
 ``effects:`` lists exactly the physics its truth includes.  The tests
 (``tests/engine/test_hypotheses_on_truth.py``) and the table
 (``benchmarks/hypothesis_truth_table.py``) read ``truth-a3.csv`` (the 55-point A3 sheet) and
@@ -20,6 +20,12 @@ Run (minutes per scene on 2 cores)::
 
     nice -n 10 .venv/bin/python tests/data/hypotheses/render_cases.py [SCENE ...] [--grids a3 floor]
     .venv/bin/python tests/data/hypotheses/render_cases.py --check [--points 2]
+
+``--variant llvm_ad_spectral`` renders with Mitsuba's vectorised CPU variant (the same spectral
+path tracer, several times faster; needs libLLVM 16 or later, e.g.
+``DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so``); ``--check`` always re-renders in
+the scalar variant, so a committed truth is checked by the other variant where it was made by the
+vectorised one.
 """
 
 from __future__ import annotations
@@ -32,10 +38,10 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("cavity-wide", "ceiling-dark", "rough-plate", "mirror-above")
+SCENES = ("cavity-wide", "ceiling-dark", "rough-plate", "mirror-above", "walls-light")
 GRIDS = ("a3", "floor")
-#: grids rendered per scene (a rough plate's truth costs half an hour a grid on 2 cores: A3 only)
-SCENE_GRIDS = {"rough-plate": ("a3",)}
+#: grids rendered per scene (all of them unless listed)
+SCENE_GRIDS: dict[str, tuple[str, ...]] = {}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 #: the truth's noise (0.3 %) is well below the 1 % meter noise the tests add
@@ -46,23 +52,23 @@ MAX_PASSES = 128
 CHECK_SEED = 7919 * (MAX_PASSES + 1)
 
 
-def _truth(folder: Path, seed: int):
+def _truth(folder: Path, seed: int, variant: str | None = None):
     from lbscene.engine.scene.compile import compile_booth
     from lbscene.engine.truth.mitsuba import MitsubaTruth
 
     ir = compile_booth(folder / "booth.yaml")
-    return ir, MitsubaTruth(ir, LIGHTING, spp=SPP_PER_PASS, passes=MIN_PASSES, seed=seed)
+    return ir, MitsubaTruth(ir, LIGHTING, spp=SPP_PER_PASS, passes=MIN_PASSES, seed=seed, variant=variant)
 
 
-def render_scene(scene: str, grids=GRIDS) -> None:
-    from lbscene.engine.truth.mitsuba import VARIANT, mitsuba_version
+def render_scene(scene: str, grids=GRIDS, variant: str | None = None) -> None:
+    from lbscene.engine.truth.mitsuba import mitsuba_version
     from lbscene.engine.truth.validation import (TruthData, booth_files_sha256, validation_grid,
                                                  write_truth_csv)
 
     folder = HERE / scene
-    ir, truth = _truth(folder, 1)
+    ir, truth = _truth(folder, 1, variant)
     meta = {"scene": scene, "renderer": "Mitsuba 3 (lbscene.engine.truth.mitsuba.MitsubaTruth)",
-            "mitsuba_version": mitsuba_version(), "variant": VARIANT, "lighting": LIGHTING,
+            "mitsuba_version": mitsuba_version(), "variant": truth.variant, "lighting": LIGHTING,
             "effects": ",".join(sorted(ir.effects)), "booth_sha256": booth_files_sha256(folder)}
     for grid in (g for g in grids if g in SCENE_GRIDS.get(scene, GRIDS)):
         t0 = time.perf_counter()
@@ -103,11 +109,13 @@ def main(argv=None) -> int:
     ap.add_argument("--grids", nargs="+", default=list(GRIDS), choices=GRIDS)
     ap.add_argument("--check", action="store_true")
     ap.add_argument("--points", type=int, default=2)
+    ap.add_argument("--variant", choices=("scalar_spectral", "llvm_ad_spectral"),
+                    help="Mitsuba variant of a render (default: the scalar one); --check always uses it")
     a = ap.parse_args(argv)
     if a.check:
         return max(check_scene(s, a.points) for s in a.scenes)
     for s in a.scenes:
-        render_scene(s, a.grids)
+        render_scene(s, a.grids, a.variant)
     return 0
 
 
