@@ -39,7 +39,7 @@ import numpy as np
 from lbscene.engine.files.atomic import write_atomic
 
 __all__ = ["TruthData", "floor_grid_mm", "validation_grid", "GRIDS", "booth_files_sha256",
-           "write_truth_csv", "read_truth_csv", "deviation_percent", "TRUTH_COLUMNS",
+           "write_truth_csv", "read_truth_csv", "render_truth_grid", "deviation_percent", "TRUTH_COLUMNS",
            "TruthComparison", "compare_with_truth"]
 
 TRUTH_COLUMNS = ("x_mm", "y_mm", "z_mm", "normal_x", "normal_y", "normal_z", "illuminance_lx",
@@ -102,6 +102,19 @@ def write_truth_csv(path: Path | str, data: TruthData) -> None:
         lines.append(f"{p[0]:.6g},{p[1]:.6g},{p[2]:.6g},{n[0]:.6g},{n[1]:.6g},{n[2]:.6g},"
                      f"{e:.8g},{s:.4g},{int(k)}")
     write_atomic(Path(path), "\n".join(lines) + "\n")
+
+
+def render_truth_grid(truth, ir, grid: str, path: Path | str, meta: dict, *, target_rel_error: float,
+                      max_passes: int) -> TruthData:
+    """Render the illuminance on the validation grid ``grid`` of ``ir`` (receivers facing +z)
+    with the truth provider ``truth`` to ``target_rel_error`` per receiver (at most
+    ``max_passes`` passes), and write it to ``path`` with ``meta`` and the grid's name."""
+    P = validation_grid(ir, grid)
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    res = truth.illuminance_with_error_lx(P, N, target_rel_error=target_rel_error, max_passes=max_passes)
+    data = TruthData(P, N, res.illuminance_lx, res.std_error_lx, res.passes, {**meta, "grid": grid})
+    write_truth_csv(path, data)
+    return data
 
 
 def read_truth_csv(path: Path | str) -> TruthData:

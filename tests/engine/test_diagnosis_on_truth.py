@@ -86,6 +86,25 @@ CASES = [
     # the lamps' spectrum differs from the declared one (no hardware involved)
     Case("lamp-shift-fitted", "lamp-shift", "a3", ("spd:D65",), False,
          ("missing:lamp_spectrum_shift", "ambiguous:lamp_spectrum_shift"), tile=True),
+    # filters of other widths and an aged lamp, in booths of other sizes and lamp layouts,
+    # A3 sheet with the output fitted and floor grid with it known
+    Case("filter-narrow-undeclared-fitted", "filter-narrow", "a3",
+         ("effect:spectral_filter", "section:filters", "lamp:filter"), False,
+         ("missing:spectral_filter",), tile=True, slow=True),
+    Case("filter-narrow-undeclared-known", "filter-narrow", "floor",
+         ("effect:spectral_filter", "section:filters", "lamp:filter"), True,
+         ("missing:spectral_filter",), tile=True, slow=True),
+    # a broad dip and a tilted lamp look alike to a spectroradiometer: a tie is honest
+    Case("filter-broad-undeclared-fitted", "filter-broad", "a3",
+         ("effect:spectral_filter", "section:filters", "lamp:filter"), False,
+         ("missing:spectral_filter", "ambiguous:spectral_filter"), tile=True, slow=True),
+    Case("filter-broad-undeclared-known", "filter-broad", "floor",
+         ("effect:spectral_filter", "section:filters", "lamp:filter"), True,
+         ("missing:spectral_filter", "ambiguous:spectral_filter"), tile=True, slow=True),
+    Case("lamp-aged-known", "lamp-aged", "floor", ("spd:D65",), True,
+         ("missing:lamp_spectrum_shift", "ambiguous:lamp_spectrum_shift"), tile=True, slow=True),
+    Case("lamp-aged-fitted", "lamp-aged", "a3", ("spd:D65",), False,
+         ("missing:lamp_spectrum_shift", "ambiguous:lamp_spectrum_shift"), tile=True, slow=True),
     # two hidden effects
     Case("filter+interreflection-known", "filter-dip", "a3",
          ("effect:spectral_filter", "effect:interreflection"), True,
@@ -206,6 +225,20 @@ def test_edit_removes_what_it_says():
                 ("effect:spectral_filter", "section:filters", "lamp:filter"))
     assert "filters:" not in out and "filter: dip" not in out and "spectral_filter" not in out
     assert "interreflection: {}" in out
+
+
+def test_every_case_has_its_truth_and_it_is_current():
+    """Each case's grid and tile were rendered from the booth file as it is now, with the
+    truth's own noise well under the 1 % meter noise the cases add."""
+    from lbscene.engine.truth.validation import booth_files_sha256, read_truth_csv
+
+    for case in CASES:
+        t = read_truth_csv(case.folder / f"truth-{case.grid}.csv")
+        assert t.meta["booth_sha256"] == booth_files_sha256(case.folder), case.id
+        assert np.max(t.std_error_lx / t.illuminance_lx) <= 0.0035, case.id
+        if case.tile:
+            tile = case.folder / "truth-tile.csv"
+            assert f"# booth_sha256: {booth_files_sha256(case.folder)}" in tile.read_text(), case.id
 
 
 @pytest.mark.slow

@@ -6,7 +6,8 @@ and hand the tool a booth file from which the hidden physics was removed.  A sce
 booth folder whose ``effects:`` lists exactly the physics its truth includes; this script writes
 
 * ``truth-a3.csv``: illuminance on the 55-point A3 sheet with its Monte Carlo standard error
-  (:func:`lbscene.engine.truth.validation.write_truth_csv`, with the booth's sha256);
+  (:func:`lbscene.engine.truth.validation.write_truth_csv`, with the booth's sha256), and
+  ``truth-floor.csv`` on the 9 × 7 floor grid for the scenes of :data:`FLOOR_SCENES`;
 * ``truth-tile.csv``: the radiance of an ideal white Lambertian tile (reflectance 1) at the
   sample position, as 5 nm bin means over 380–780 nm (a spectroradiometer's output), with its
   standard error: :math:`L_b = \\frac{1}{π}\\,\\overline{E}_b`.
@@ -14,6 +15,10 @@ booth folder whose ``effects:`` lists exactly the physics its truth includes; th
 Run (a few minutes per scene on 2 cores)::
 
     nice -n 10 .venv/bin/python tests/data/diagnosis/render_cases.py [SCENE ...]
+
+``--variant llvm_ad_spectral`` renders with Mitsuba's vectorised CPU variant (the same spectral
+path tracer, several times faster; needs libLLVM 16 or later, e.g.
+``DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so``).
 """
 
 from __future__ import annotations
@@ -26,7 +31,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("filter-dip", "lamp-shift")
+SCENES = ("filter-dip", "lamp-shift", "filter-narrow", "filter-broad", "lamp-aged")
+#: scenes whose truth includes the floor grid too
+FLOOR_SCENES = ("filter-narrow", "filter-broad", "lamp-aged")
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.002
@@ -53,25 +60,22 @@ def render_tile(truth, ir) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return 0.5 * (edges[:-1] + edges[1:]), m[0], s[0]
 
 
-def render_scene(scene: str) -> None:
+def render_scene(scene: str, variant: str | None = None) -> None:
     from lbscene.engine.scene.compile import compile_booth
-    from lbscene.engine.truth.mitsuba import VARIANT, MitsubaTruth, mitsuba_version
-    from lbscene.engine.truth.validation import (TruthData, booth_files_sha256, validation_grid,
-                                                 write_truth_csv)
+    from lbscene.engine.truth.mitsuba import MitsubaTruth, mitsuba_version
+    from lbscene.engine.truth.validation import booth_files_sha256, render_truth_grid
 
     folder = HERE / scene
     ir = compile_booth(folder / "booth.yaml")
-    truth = MitsubaTruth(ir, LIGHTING, spp=SPP_PER_PASS, passes=MIN_PASSES, seed=1)
+    truth = MitsubaTruth(ir, LIGHTING, spp=SPP_PER_PASS, passes=MIN_PASSES, seed=1, variant=variant)
     meta = {"scene": scene, "renderer": "Mitsuba 3 (lbscene.engine.truth.mitsuba.MitsubaTruth)",
-            "mitsuba_version": mitsuba_version(), "variant": VARIANT, "lighting": LIGHTING,
+            "mitsuba_version": mitsuba_version(), "variant": truth.variant, "lighting": LIGHTING,
             "effects": ",".join(sorted(ir.effects)), "booth_sha256": booth_files_sha256(folder)}
-    t0 = time.perf_counter()
-    P = validation_grid(ir, "a3")
-    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
-    res = truth.illuminance_with_error_lx(P, N, target_rel_error=TARGET_REL_ERROR, max_passes=MAX_PASSES)
-    write_truth_csv(folder / "truth-a3.csv", TruthData(P, N, res.illuminance_lx, res.std_error_lx,
-                                                       res.passes, {**meta, "grid": "a3"}))
-    print(f"{scene} a3: {time.perf_counter() - t0:.0f} s", flush=True)
+    for grid in ("a3", "floor") if scene in FLOOR_SCENES else ("a3",):
+        t0 = time.perf_counter()
+        render_truth_grid(truth, ir, grid, folder / f"truth-{grid}.csv", meta,
+                          target_rel_error=TARGET_REL_ERROR, max_passes=MAX_PASSES)
+        print(f"{scene} {grid}: {time.perf_counter() - t0:.0f} s", flush=True)
     t0 = time.perf_counter()
     wl, L, se = render_tile(truth, ir)
     lines = [f"# {k}: {v}" for k, v in {**meta, "receiver": "white tile, reflectance 1"}.items()]
@@ -87,9 +91,11 @@ def render_scene(scene: str) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenes", nargs="*", default=list(SCENES))
+    ap.add_argument("--variant", choices=("scalar_spectral", "llvm_ad_spectral"),
+                    help="Mitsuba variant (default: the scalar one)")
     a = ap.parse_args(argv)
     for s in a.scenes:
-        render_scene(s)
+        render_scene(s, a.variant)
     return 0
 
 

@@ -47,7 +47,7 @@ SPP_PER_PASS = 65536
 #: the truth's noise (0.3 %) is well below the 1 % meter noise the tests add
 TARGET_REL_ERROR = 0.003
 MIN_PASSES = 4
-MAX_PASSES = 128
+MAX_PASSES = 256
 #: seeds of a --check run: beyond every seed of a committed render
 CHECK_SEED = 7919 * (MAX_PASSES + 1)
 
@@ -62,8 +62,7 @@ def _truth(folder: Path, seed: int, variant: str | None = None):
 
 def render_scene(scene: str, grids=GRIDS, variant: str | None = None) -> None:
     from lbscene.engine.truth.mitsuba import mitsuba_version
-    from lbscene.engine.truth.validation import (TruthData, booth_files_sha256, validation_grid,
-                                                 write_truth_csv)
+    from lbscene.engine.truth.validation import booth_files_sha256, render_truth_grid
 
     folder = HERE / scene
     ir, truth = _truth(folder, 1, variant)
@@ -72,13 +71,10 @@ def render_scene(scene: str, grids=GRIDS, variant: str | None = None) -> None:
             "effects": ",".join(sorted(ir.effects)), "booth_sha256": booth_files_sha256(folder)}
     for grid in (g for g in grids if g in SCENE_GRIDS.get(scene, GRIDS)):
         t0 = time.perf_counter()
-        P = validation_grid(ir, grid)
-        N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
-        res = truth.illuminance_with_error_lx(P, N, target_rel_error=TARGET_REL_ERROR, max_passes=MAX_PASSES)
-        write_truth_csv(folder / f"truth-{grid}.csv", TruthData(P, N, res.illuminance_lx, res.std_error_lx,
-                                                                res.passes, {**meta, "grid": grid}))
+        t = render_truth_grid(truth, ir, grid, folder / f"truth-{grid}.csv", meta,
+                              target_rel_error=TARGET_REL_ERROR, max_passes=MAX_PASSES)
         print(f"{scene} {grid}: {time.perf_counter() - t0:.0f} s, max rel. error "
-              f"{100 * np.max(res.std_error_lx / res.illuminance_lx):.2f} %", flush=True)
+              f"{100 * np.max(t.std_error_lx / t.illuminance_lx):.2f} %", flush=True)
 
 
 def check_scene(scene: str, points: int) -> int:
