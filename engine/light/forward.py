@@ -477,8 +477,20 @@ class ForwardModel:
             base = base * resp
         if incidence_weight is not None:
             ck = getattr(incidence_weight, "cache_key", None)
-            w = (incidence_weight(cos_rx) if ck is None else
-                 self.ctx.memo(f"incidence:{ck!r}", (es.points_mm, P, N), lambda: incidence_weight(cos_rx)))
+            if es.line_axis is not None and es.line_radius_mm > 0:
+                # a tube slice's light arrives from the arc of its surface the receiver sees, not
+                # from its axis: the weight averaged over that arc (_cylinder_slices_weight)
+                axis = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+
+                def weight():
+                    d = P[:, None, :] - es.points_mm[None, :, :]
+                    return _cylinder_slices_weight(d, N, axis, es.line_radius_mm, incidence_weight)
+                cyl = (np.asarray(axis, float), np.array([es.line_radius_mm], float))
+            else:
+                def weight():
+                    return incidence_weight(cos_rx)
+                cyl = ()
+            w = weight() if ck is None else self.ctx.memo(f"incidence:{ck!r}", (es.points_mm, P, N, *cyl), weight)
             base = base * w
         channels = [(1.0, (), None)]
         pk = None
@@ -752,6 +764,43 @@ def _cylinder_slices(d, N, axis, radius_mm):
         cos_r = np.clip((radius_mm * (c * Ne + s * Ne2) - Nd) / rho, 0.0, None)
         out += gk * cos_s * cos_r / (rho2 * 1e-6)
     return 0.5 * phi0 * out
+
+
+def _cylinder_slices_weight(d, N, axis, radius_mm, weight):
+    """Irradiance-weighted mean of ``weight(cos θ_r)`` over the arc of a Lambertian cylinder
+    slice a receiver sees, (M, K):
+
+        W = ∫ w(cos θ_r) cos θ_s cos θ_r / ρ² dφ  /  ∫ cos θ_s cos θ_r / ρ² dφ
+
+    (the integrals of :func:`_cylinder_slices`, same quadrature).  An incidence weight evaluated
+    along the slice's axis instead sees the light of a near tube from too steep a direction: an
+    opal plate 48.5 mm under tubes of radius 13 mm took 1.5 % too much of it."""
+    t, g = _GAUSS_ARC
+    a = np.asarray(axis, float)
+    ax = d @ a
+    perp = d - ax[..., None] * a
+    h = np.maximum(np.linalg.norm(perp, axis=-1), 1e-9)
+    e = perp / h[..., None]
+    phi0 = np.arccos(np.clip(radius_mm / h, -1.0, 1.0))
+    Ne = np.einsum("mkc,mc->mk", e, N)
+    Ne2 = np.einsum("mkc,mc->mk", np.cross(a, e), N)
+    Nd = np.einsum("mkc,mc->mk", d, N)
+    d2 = np.einsum("mkc,mkc->mk", d, d)
+    num = np.zeros(d.shape[:2])
+    den = np.zeros(d.shape[:2])
+    for tk, gk in zip(t, g):
+        phi = phi0 * tk
+        c, s = np.cos(phi), np.sin(phi)
+        rho2 = np.maximum(d2 - 2.0 * radius_mm * h * c + radius_mm ** 2, 1e-6)
+        rho = np.sqrt(rho2)
+        cos_s = (h * c - radius_mm) / rho
+        cos_r = np.clip((radius_mm * (c * Ne + s * Ne2) - Nd) / rho, 0.0, None)
+        f = gk * cos_s * cos_r / rho2
+        num += f * weight(cos_r)
+        den += f
+    # no light (den 0): the weight along the axis, which multiplies nothing
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0),
+                    weight(np.clip(-Nd / np.sqrt(np.maximum(d2, 1e-12)), 0.0, None)))
 
 
 def _merge_terms(terms: list[Term]) -> list[Term]:

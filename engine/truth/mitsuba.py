@@ -22,7 +22,9 @@ panel                ``rectangle`` (length along ``axis`` × width along
 bulb                 ``sphere``, :math:`L = I / (π r^2)`
 point                ``point`` emitter of intensity :math:`I(λ)`
 lamp bodies          tube, panel and bulb shapes are black (absorbing), as in the
-                     forward model; a lamp that is off stays as a black body
+                     forward model; a lamp that is off stays as a black body;
+                     under ``volpath`` the emitting shape is ``null`` with the
+                     black body :data:`LAMP_BODY_INSET_MM` inside it (below)
 occluders            black (or declared-material) ``twosided`` rectangles; an
                      aperture plate is the frame around its opening
                      (``aperture_occlusion`` on)
@@ -85,7 +87,24 @@ Opal plates behind a smooth dielectric are expensive in a booth: next-event esti
 reach a lamp through a refracting face, so the lamps above the plate are found only when a sampled
 direction hits them.  A plate declared with ``ior: 1.0`` (a scattering layer whose faces are
 matched to the air) is a ``null`` box: ``volpath`` traces shadow rays through it and its medium,
-and every scattering event inside sees the lamps.  Booths render in ``scalar_spectral`` or in its
+and every scattering event inside sees the lamps.
+
+Two float32 effects of Mitsuba 3.9.1 bias a layer this thin in booth coordinates.  A ray leaving
+a surface starts about :math:`10^{-4}` of the point's largest coordinate off it (0.05 mm at
+600 mm), so a ray entering the ``null`` box skips that much of the medium: a 0.3 mm layer at
+z 600 mm transmitted 1.5 times what the plane-parallel layer does, a 3 mm one a few per cent
+more.  An opal booth is therefore rendered with the plate's centre at the origin
+(:meth:`MitsubaTruth.render_shift_mm`; the scene translated as a whole, the exported scene keeps
+the booth's coordinates); 0.04 mm remain at the corners of an 880 mm plate.  And ``volpath``'s shadow ray from a scattering event overshoots the
+point sampled on a lamp by the same offsets: a lamp whose emitting shape is its black body
+stopped it (mitsuba-renderer/mitsuba3 pull request 678 reports black emitters in ``volpath``);
+the opal-black booth read 7 to 9 % low.  Under ``volpath`` a lamp's emitting shape is therefore
+``null`` (transparent, still emitting) and its black body the same shape
+:data:`LAMP_BODY_INSET_MM` inside it (a thinner cylinder, a smaller sphere, a rectangle behind
+a panel): light still ends on the lamp as on a black body.  ``tests/engine/test_truth_mitsuba.py``
+holds a small lamp over such a layer to an adding–doubling solution of the plane-parallel layer.
+
+Booths render in ``scalar_spectral`` or in its
 vectorised twin ``llvm_ad_spectral`` (``variant``: the same path tracer as a wavefront on the
 CPU, several times faster per sample for the volumetric plate; it needs libLLVM, found through
 ``DRJIT_LIBLLVM_PATH``); plates are always measured and their media fitted in the scalar variant.
@@ -167,6 +186,21 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def _translate(scene: dict, t, mi) -> None:
+    """Translate the shapes, lamps and meters of a scene dict by ``t`` (mm) in place (meshes are
+    translated where they are built, :meth:`MitsubaTruth._surfaces`)."""
+    T = np.eye(4)
+    T[:3, 3] = t
+    for v in scene.values():
+        if not isinstance(v, dict):
+            continue
+        if "to_world" in v:
+            v["to_world"] = mi.ScalarTransform4f((T @ np.asarray(v["to_world"].matrix, float)).tolist())
+        for key in ("p0", "p1", "center", "position", "origin"):
+            if key in v:
+                v[key] = (np.asarray(v[key], float) + t).tolist()
+
+
 def _frame(x, y, z, origin, sx, sy, sz):
     """4×4 to_world: local (±1, ±1, ±1) → origin + sx·x + sy·y + sz·z."""
     m = np.eye(4)
@@ -191,6 +225,9 @@ OPAL_G_MAX = 0.95
 #: the plate's total normal transmittance to about ±0.001, the accuracy its booth truth inherits
 OPAL_FIT_SPP = 65536
 _PLATE_CACHE: dict = {}
+#: under ``volpath``, a lamp's black body lies this far inside its null emitting shape (module
+#: docstring: a shadow ray ending on the emitter must not be stopped by the lamp's own surface)
+LAMP_BODY_INSET_MM = 0.01
 
 
 def plate_bsdf(scattering: dict, ior: float) -> dict:
@@ -497,10 +534,31 @@ class MitsubaTruth:
 
             I = level * lamp_spectrum_1nm(ir, lamp, fx)  # W/sr/nm, shifted and filtered as declared
             shape = self._lamp_shape(lamp, I)
-            if lamp.kind != "point":
-                shape["bsdf"] = black
-            out[f"lamp_{lamp.id}"] = shape
+            if lamp.kind == "point":
+                out[f"lamp_{lamp.id}"] = shape
+            elif self._has_opal():
+                # volpath: a null emitter with its black body just inside (module docstring)
+                out[f"lamp_{lamp.id}"] = dict(shape, bsdf={"type": "null"})
+                out[f"body_{lamp.id}"] = dict(self._lamp_body_inset(lamp), bsdf=black)
+            else:
+                out[f"lamp_{lamp.id}"] = dict(shape, bsdf=black)
         return out
+
+    def _lamp_body_inset(self, lamp) -> dict:
+        """The lamp's black body :data:`LAMP_BODY_INSET_MM` inside its emitting shape (no emitter):
+        a thinner cylinder, a smaller sphere, a rectangle behind a panel."""
+        p = np.asarray(lamp.position_mm, float)
+        ax = _unit(lamp.axis)
+        e = LAMP_BODY_INSET_MM
+        if lamp.kind == "tube":
+            return {"type": "cylinder", "p0": (p - ax * lamp.length_mm / 2).tolist(),
+                    "p1": (p + ax * lamp.length_mm / 2).tolist(), "radius": float(lamp.radius_mm) - e}
+        if lamp.kind == "bulb":
+            return {"type": "sphere", "center": p.tolist(), "radius": float(lamp.radius_mm) - e}
+        aim = _unit(lamp.aim)
+        wdir = _unit(np.cross(aim, ax))
+        return {"type": "rectangle", "to_world": _mi(self.variant).ScalarTransform4f(
+                    _frame(ax, wdir, aim, p - e * aim, lamp.length_mm / 2, lamp.width_mm / 2, 1.0).tolist())}
 
     def _lamp_shape(self, lamp, I) -> dict:
         """The Mitsuba shape (with its area emitter) of one lamp of peak intensity ``I`` (W/sr/nm)."""
@@ -546,10 +604,12 @@ class MitsubaTruth:
                                       self._bsdf(refl))
         return out
 
-    def _surfaces(self) -> dict:
+    def _surfaces(self, shift_mm=None) -> dict:
         mi = _mi(self.variant)
         out = {}
         for name, (v, t, bsdf) in self.surface_meshes().items():
+            if shift_mm is not None:
+                v = (v.astype(float) + np.asarray(shift_mm, float)).astype(np.float32)
             props = mi.Properties()
             props["bsdf"] = mi.load_dict(bsdf)
             mesh = mi.Mesh(name, len(v), len(t), props=props)
@@ -652,10 +712,20 @@ class MitsubaTruth:
         plate["bsdf"] = bsdf
         return {"diffuser": plate}
 
-    def scene_dict(self, points, normals, film_bands: dict | None = None) -> dict:
+    def render_shift_mm(self) -> np.ndarray | None:
+        """The translation a ``volpath`` (opal) scene is rendered under: the plate's centre to the
+        origin (module docstring, float offsets); None for other scenes (rendered as declared)."""
+        if not self._has_opal():
+            return None
+        d = self.ir.diffuser
+        return -np.array([d.centre_mm[0], d.centre_mm[1], d.z_mm], float)
+
+    def scene_dict(self, points, normals, film_bands: dict | None = None, *, shift_mm=None) -> dict:
         """The Mitsuba scene (dict) with one measuring disc and radiancemeter per receiver.
 
         ``film_bands``: name → 1 nm sensitivity of the film's channels (default: ``{'V': V(λ)}``).
+        ``shift_mm``: translate the whole scene by this vector (the booth's coordinates when None;
+        rendering uses :meth:`render_shift_mm`).
         """
         from lbscene.engine.spectra.evaluate import photopic_1nm
 
@@ -667,7 +737,7 @@ class MitsubaTruth:
         # an opal plate's scattering medium needs the volumetric path tracer
         scene = {"type": "scene", "integrator": {"type": "volpath" if self._has_opal() else "path",
                                                  "max_depth": -1}}
-        scene.update(self._surfaces())
+        scene.update(self._surfaces(shift_mm))
         scene.update(self._lamp_shapes())
         scene.update(self._occluders())
         scene.update(self._mirrors())
@@ -690,6 +760,8 @@ class MitsubaTruth:
                 "type": "radiancemeter", "origin": (p + 2 * DISC_LIFT_MM * n).tolist(),
                 "direction": (-n).tolist(), "film": film,
                 "sampler": {"type": "independent", "sample_count": self.spp}}
+        if shift_mm is not None:
+            _translate(scene, np.asarray(shift_mm, float), _mi(self.variant))
         return scene
 
     # ------------------------------------------------------------------ measurement
@@ -710,7 +782,7 @@ class MitsubaTruth:
         used = np.zeros(len(P), int)
         scale = np.broadcast_to(np.asarray(scale, float), (C,))
         for group in _coplanar_groups(P, N):
-            scene = mi.load_dict(self.scene_dict(P[group], N[group], film_bands))
+            scene = mi.load_dict(self.scene_dict(P[group], N[group], film_bands, shift_mm=self.render_shift_mm()))
             for i, sensor in zip(group, scene.sensors()):
                 vals = []
                 while True:

@@ -3,8 +3,10 @@
 
 Kind ``geometric`` (and spectral: the plate's transmittance).  Straight paths through the
 plate get its spectral transmittance and the Fresnel angular loss; an opal plate's diffuse
-fraction enters with its top face's Fresnel transmittance and is re-emitted from the plate's
-cells with the opal exit law (Lambertian times the bottom face's Fresnel transmittance,
+fraction enters with its top face's Fresnel transmittance and its layer's entry law
+(:func:`lbscene.engine.light.plates.opal_entry_relative`, averaged for a tube over the arc of
+its surface each point of the plate sees, not taken along the tube's axis) and is re-emitted
+from the plate's cells with the opal exit law (Lambertian times the bottom face's Fresnel transmittance,
 :func:`lbscene.engine.light.plates.opal_exit_shape`).  The declared transmittance is the
 plate's total at normal incidence (:func:`lbscene.engine.light.plates.reference_transmittance`).  A ``roughness`` plate (rough
 glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on re-emitting
