@@ -9,6 +9,43 @@ the way, before the mirror and after it); every mirror's back stops the lamps' s
 light.  Two tubes with their mirrors side by side on a rear wall (validation scene
 ``mirror-behind``), or two bulbs under mirrors that tile one plane: a model that mirrored each
 lamp in its own mirror only missed up to 17 % of the light far to the side.
+
+Mirror shapes (:func:`mirror_facets`):
+
+``plane``
+    one rectangle facing ``normal``, ``distance_mm`` behind the lamp's axis, ``width_mm``
+    across it and as long as the lamp.
+``prism``
+    two plane facets meeting at an apex parallel to the lamp's axis, ``distance_mm`` behind it,
+    each ``width_mm / 2`` wide from the apex and folded toward the lamp (a V reflector): with
+    apex angle :math:`α` (``apex_angle_deg``), facet :math:`s = ±1` leaves the apex along
+
+    .. math:: e_s = s \\cos β\\, c + \\sin β\\, n, \\qquad β = (180° - α) / 2,
+
+    (:math:`n` the declared ``normal``, toward the lamp; :math:`c` across the lamp's axis) and
+    faces :math:`n_s = -s \\sin β\\, c + \\cos β\\, n`.  A lamp at distance :math:`d` on the axis
+    has one image per facet, at :math:`d` from the apex and :math:`α` from the lamp seen from
+    it: :math:`d(s \\sin 2β\\, c - \\cos 2β\\, n)` (apex 120°: 0.87 d to the side and 0.5 d behind
+    the apex), so the tube's own body hides it only in part, where a plane mirror's image
+    lies straight behind the tube.  At 180° the two facets are the plane mirror.
+``parabolic_trough``
+    drawn as the plane mirror (the linter says so, ``LB314``).
+
+First order only: each image is seen through its facet's rectangle and past the lamp's body.
+Light reflected twice — facet to facet — is omitted (the light of an image that meets the other
+facet is counted as if it went on).  For a point of the
+lamp at polar angle :math:`φ` from the prism's axis (seen from the apex, toward facet
+:math:`s`), its image in facet :math:`s` lies at :math:`α - φ`, and light from that image
+can reach the other facet only if the image is on the wedge's side of that facet's plane:
+
+.. math:: α - φ < 180° - α/2 \\iff α < 120° + \\tfrac{2}{3} φ .
+
+A lamp on the axis (φ = 0) therefore meets no facet twice for :math:`α ≥ 120°`; a tube of
+radius :math:`r` at :math:`d` adds points up to :math:`φ = \\arcsin(r/d)`, so a fringe of
+double reflections remains up to :math:`α = 120° + \\tfrac23 \\arcsin(r/d)` (a 6 mm tube 35 mm
+from the apex: 126.6°), grazing and of little light; below 120° it grows to a large share
+(the linter warns, ``LB314``).  The validation scene ``mirror-prism`` (apex 120°) holds the
+first-order model to Mitsuba 3, which draws every order.
 """
 
 from __future__ import annotations
@@ -20,7 +57,7 @@ from lbscene.engine.light.effects.physics import (EmitterSet, LampSelection, Pat
                                                   lamp_selected, lamps_on)
 from lbscene.engine.light.effects.registry import register_effect
 
-__all__ = ["ReflectorEffect", "mirror_rect", "MIRROR_RING"]
+__all__ = ["ReflectorEffect", "mirror_rect", "mirror_facets", "MIRROR_RING"]
 
 #: lines around a tube's image for the share of it a mirror's edge lets through: the image of a
 #: tube 40 mm in front of a 120 mm mirror is cut by the edge for receivers across a whole row of
@@ -48,6 +85,30 @@ def mirror_rect(ir, lamp, refl):
     return Rectangle(c, n, ax, (along, refl.width_mm / 2))
 
 
+def mirror_facets(ir, lamp, refl) -> list:
+    """The mirror of ``lamp`` (reflector ``refl``) as the plane rectangles it is made of: one for a
+    ``plane`` (and a ``parabolic_trough``, drawn as a plane), :func:`mirror_rect`; two for a
+    ``prism`` (the module docstring): each ``width_mm / 2`` wide from the apex, as long as the
+    plane mirror, facing the lamp."""
+    rect = mirror_rect(ir, lamp, refl)
+    if refl.type != "prism":
+        return [rect]
+    from lbscene.engine.light.geometry import Rectangle
+
+    alpha = float(refl.apex_angle_deg if getattr(refl, "apex_angle_deg", None) is not None else 120.0)
+    beta = np.radians((180.0 - alpha) / 2.0)
+    n, ax = np.asarray(rect.normal, float), np.asarray(rect.u, float)
+    c = np.cross(n, ax)                              # across the lamp's axis, in the apex plane
+    apex = np.asarray(rect.centre, float)
+    fw = refl.width_mm / 2.0
+    out = []
+    for s in (-1.0, 1.0):
+        e = s * np.cos(beta) * c + np.sin(beta) * n
+        ns = -s * np.sin(beta) * c + np.cos(beta) * n
+        out.append(Rectangle(apex + e * (fw / 2.0), ns, ax, (rect.half[0], fw / 2.0)))
+    return out
+
+
 @register_effect
 class ReflectorEffect(PhysicalEffect):
     id = "reflector"
@@ -71,7 +132,7 @@ class ReflectorEffect(PhysicalEffect):
         """The lamp's image in every mirror of the lighting (its own and the other lamps'):
         a plane mirror reflects whatever light reaches it."""
         out = []
-        for owner, refl, rect in _mirrors(ctx, p):
+        for owner, refl, rect, facet in _mirrors(ctx, p):
             n = rect.normal
             pts = es.points_mm - 2.0 * ((es.points_mm - rect.centre) @ n)[:, None] * n[None, :]
             R = np.clip(refl.reflectance.array_1nm * p.reflectance_scale, 0.0, 1.0)
@@ -81,10 +142,12 @@ class ReflectorEffect(PhysicalEffect):
 
             half = None if es.half_step is None else es.half_step - 2.0 * (es.half_step @ n) * n
             tag = f"image:{lamp.reflector}" if owner.id == lamp.id else f"image:{owner.reflector}@{owner.id}"
+            if facet is not None:
+                tag += f"/facet{facet}"
             out.append(es.with_(points_mm=pts, spectrum_1nm=es.spectrum_1nm * R, half_step=half,
                                 spectral_key=es.spectral_key + (f"reflector:{owner.reflector}@{owner.id}",),
                                 direction_map=reflect, tag=tag,
-                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id}))
+                                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id}))
         return out
 
     @staticmethod
@@ -114,7 +177,7 @@ class ReflectorEffect(PhysicalEffect):
             return [PathChannel(f)]
         # the lamp's straight light: every mirror (its back absorbs) stops what meets it
         f = None
-        for _, _, rect in mirrors:
+        for _, _, rect, _ in mirrors:
             blocked = ctx.fraction_hitting(es, rx, rect)
             if blocked.any():
                 f = (1.0 - blocked) if f is None else f * (1.0 - blocked)
@@ -122,14 +185,18 @@ class ReflectorEffect(PhysicalEffect):
 
 
 def _mirrors(ctx, p) -> list:
-    """``(owner lamp, reflector, Rectangle)`` of every lamp the lighting switches on that has a
-    mirror (and that the effect's ``lamps`` selects)."""
+    """``(owner lamp, reflector, Rectangle, facet)`` of every facet of every lamp the lighting
+    switches on that has a mirror (and that the effect's ``lamps`` selects): ``facet`` None for a
+    mirror of one rectangle, else its index."""
     ir = ctx.ir
     out = []
     for lamp in lamps_on(ir, ctx.lighting):
         if lamp.reflector and lamp_selected(p, lamp.id) and lamp.reflector in ir.reflectors:
             refl = ir.reflectors[lamp.reflector]
-            out.append((lamp, refl, mirror_rect(ir, lamp, refl)))
+            rects = mirror_facets(ir, lamp, refl)
+            for k, rect in enumerate(rects):
+                facet = None if len(rects) == 1 else k
+                out.append((lamp, refl, rect, facet))
     return out
 
 
