@@ -147,7 +147,8 @@ class ReflectorEffect(PhysicalEffect):
             out.append(es.with_(points_mm=pts, spectrum_1nm=es.spectrum_1nm * R, half_step=half,
                                 spectral_key=es.spectral_key + (f"reflector:{owner.reflector}@{owner.id}",),
                                 direction_map=reflect, tag=tag,
-                                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id}))
+                                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id,
+                                      "mirror_facet": facet}))
         return out
 
     @staticmethod
@@ -165,7 +166,10 @@ class ReflectorEffect(PhysicalEffect):
             # lamp's body also stands in the way, after the mirror (as itself) and before it
             # (its mirror image on the image's side of the plane)
             rect = es.meta["mirror"]
-            f = ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+            if es.meta.get("mirror_facet") is None:
+                f = ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+            else:
+                f = _fraction_through_facet(ctx, es, rx, rect)
             body = lamp_body(lamp) if lamp.mount == "booth" else None
             if body is not None:
                 f = f * ctx.fraction_past_body(es, rx, body)
@@ -217,3 +221,79 @@ def _mirrored(body, rect):
     if isinstance(body, Ball):
         return replace(body, centre=m(body.centre))
     return body
+
+
+def _fraction_through_facet(ctx, es, rx, rect) -> np.ndarray:
+    """(M, N) share of each image slice's light toward each receiver that passes through a prism
+    facet ``rect``.
+
+    A facet's long edges run along the tube, a few radii from its image, so which part of the
+    image's visible arc a receiver sees through the facet changes smoothly with the receiver;
+    :data:`MIRROR_RING` lines on the image's surface, each in or out, step it (24 lines put the
+    far rows of the validation scene ``mirror-prism`` 3.5 % low; 384 still 0.9 %).  Here each
+    line stands for its arc element and its slice: the element's footprint where its rays cross
+    the facet's plane, a box of half sizes :math:`w_u, w_v` around the crossing point
+    :math:`(x_u, x_v)`, is the element's offset :math:`δ` (half the slice along the axis, half
+    the arc :math:`π r / n` along the tangent) carried to the plane,
+
+    .. math:: Δx = (1 - s)\\left(δ - D\\,\\frac{δ·n}{D·n}\\right),
+
+    (:math:`D` from the line to the receiver, :math:`s` the crossing's fraction of it), and its
+    share inside the facet is the product of the overlaps
+    :math:`\\operatorname{clip}\\big((\\min(x+w, H) - \\max(x-w, -H)) / 2w, 0, 1\\big)` along
+    :math:`u` and :math:`v`.  The lines are weighted by their Lambertian :math:`\\max(0, n_k·D)`,
+    as :func:`~lbscene.engine.light.effects.physics.ForwardContext.fraction_hitting` weights them.
+    A point or a bulb's image (no line radius) is tested as a plane mirror's is."""
+    if es.line_axis is None or es.line_radius_mm <= 0:
+        return ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+    rx = np.asarray(rx, float)
+    half = np.zeros(3) if es.half_step is None else np.asarray(es.half_step, float)
+
+    def overlap(x, w, H):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            soft = np.clip((np.minimum(x + w, H) - np.maximum(x - w, -H)) / (2.0 * w), 0.0, 1.0)
+        return np.where(w > 1e-9, soft, (np.abs(x) <= H).astype(float))
+
+    def compute():
+        a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+        a = np.asarray(a, float) / np.linalg.norm(a)
+        e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(a, e1)
+        c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+        u, v = np.asarray(rect.u, float), np.asarray(rect.v, float)
+        r, lines = float(es.line_radius_mm), MIRROR_RING
+        pts = np.asarray(es.points_mm, float)
+        d = rx[:, None, :] - pts[None, :, :]
+        hR = (rx - c) @ n
+        num = np.zeros(d.shape[:2])
+        den = np.zeros(d.shape[:2])
+        for k in range(lines):
+            phi = 2.0 * np.pi * (k + 0.5) / lines
+            nk = np.cos(phi) * e1 + np.sin(phi) * e2
+            w = np.clip(d @ nk, 0.0, None)
+            P = pts + r * nk
+            D = rx[:, None, :] - P[None, :, :]
+            hP = (P - c) @ n
+            Dn = hR[:, None] - hP[None, :]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = np.where(np.abs(Dn) > 1e-12, -hP[None, :] / Dn, -1.0)
+                ok = (s > 1e-9) & (s < 1.0 - 1e-9)
+                X = P[None, :, :] + s[..., None] * D - c
+                xu, xv = X @ u, X @ v
+
+                def foot(delta):
+                    return (1.0 - s)[..., None] * (delta - D * ((delta @ n) / Dn)[..., None])
+
+                fa = foot(half)
+                ft = foot(np.cross(a, nk) * (np.pi * r / lines))
+            wu = np.abs(fa @ u) + np.abs(ft @ u)
+            wv = np.abs(fa @ v) + np.abs(ft @ v)
+            cov = np.where(ok, overlap(xu, wu, rect.half[0]) * overlap(xv, wv, rect.half[1]), 0.0)
+            num += w * np.nan_to_num(cov)
+            den += w
+        return np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+
+    key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half,
+           np.asarray([es.line_radius_mm, MIRROR_RING]))
+    return ctx.memo("hit:facet", key, compute)
