@@ -252,6 +252,22 @@ def _define_materials(stage, ir: SceneIR, light_1nm, *, define: bool) -> None:
         else:
             stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
                 "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+    for r in ir.reflectors.values():
+        # a mirror: metallic, smooth, its colour the reflectance's (UsdPreviewSurface takes a
+        # metal's specular colour from diffuseColor)
+        path = f"/Booth/Materials/{_prim_name('reflector_' + r.id)}"
+        rgb = Gf.Vec3f(*adapted_linear_srgb(np.clip(r.reflectance.array_1nm, 0, 1), light_1nm))
+        if define:
+            material = UsdShade.Material.Define(stage, path)
+            shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
+            shader.CreateIdAttr("UsdPreviewSurface")
+            shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.0)
+            shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(1.0)
+            shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+            material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+        else:
+            stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
+                "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
     if ir.diffuser is not None:
         d = ir.diffuser
         path = "/Booth/Materials/Diffuser"
@@ -441,6 +457,7 @@ def _build(ir: SceneIR, lighting: str | None):
             mesh.CreateDoubleSidedAttr(False)
             mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*adapted_linear_srgb(
                 np.clip(r.reflectance.array_1nm, 0, 1), lighting_spectrum_1nm(ir, default)))]))
+            _bind(stage, mesh.GetPrim(), f"/Booth/Materials/{_prim_name('reflector_' + r.id)}")
     if ir.diffuser is not None:
         d = ir.diffuser
         # a thin plate at the diffuser's mid-plane, seen from both sides, with a transmissive material
