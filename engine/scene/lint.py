@@ -394,8 +394,8 @@ def _reflector_shapes(doc: LoadedDocument) -> list[Diagnostic]:
         if r.type == "parabolic_trough":
             diags.append(Diagnostic(
                 "LB314", f"reflector '{rid}' is a parabolic trough: the model and the Cycles bakes draw it as a "
-                "plane mirror of the same width (its focusing is not modelled; the Mitsuba truth refuses it)", doc.locate("reflectors", rid, "type"),
-                severity=Severity.WARNING))
+                "plane mirror of the same width (its focusing is not modelled; the Mitsuba truth refuses it)",
+                doc.locate("reflectors", rid, "type"), severity=Severity.WARNING))
         elif r.type == "prism" and r.apex_angle_deg is not None and r.apex_angle_deg < 120.0:
             diags.append(Diagnostic(
                 "LB314", f"reflector '{rid}': apex angle {r.apex_angle_deg:g}° is under 120°, where light "
