@@ -316,7 +316,7 @@ def build_blend(jobs: list[BakeJob], spec: dict, out: Path) -> None:
             if ".mirror" not in base_name:
                 obj.visible_camera = True     # a user sees the lamps (the bake's maps do not)
         elif obj.get("lbscene_role") == "mirror":
-            lid = base_name.split("mirror.", 1)[-1]
+            lid = base_name.split("mirror.", 1)[-1].split(".facet")[0]     # a prism: one plate per facet
             m = spec["mirrors"].get(lid)
             rgb = (F @ np.asarray(m["reflectance_bands"])) if m else np.full(3, 0.9)
             obj.data.materials.clear()

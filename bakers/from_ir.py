@@ -28,7 +28,8 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   *every* lamp), reflector (the lamp's surface mirrored across the mirror,
   radiance × the mirror's reflectance, shining only through the mirror's
   rectangle: the image method; the lamp's own body is in the image's way, as
-  it is in a real luminaire) — while Cycles does the geometry: visibility,
+  it is in a real luminaire; a prism mirror is its two facets, one image
+  through each, first order as in the model) — while Cycles does the geometry: visibility,
   occlusion, inter-reflection.
 * **products**: an equirect environment map 1 mm above the sample position
   (and one per geometry where the platform turns: above the turned sample,
@@ -223,20 +224,15 @@ def _lamp_mesh(lamp) -> tuple[tuple, tuple, float]:
             em.projected_area_m2)
 
 
-def _mirror_window(lamp, refl) -> Window:
-    """The mirror rectangle behind a lamp (as the ``reflector`` effect defines it)."""
-    n = np.asarray(refl.normal, float)
-    c = np.asarray(lamp.position_mm, float) - n * refl.distance_mm
-    ax = np.asarray(lamp.axis, float)
-    ax = ax - n * (ax @ n)
-    if np.linalg.norm(ax) < 1e-9:
-        ax = np.cross(n, [1.0, 0.0, 0.0])
-        if np.linalg.norm(ax) < 1e-9:
-            ax = np.cross(n, [0.0, 1.0, 0.0])
-    ax = ax / np.linalg.norm(ax)
-    along = (lamp.length_mm if lamp.kind in ("tube", "panel") else refl.width_mm) / 2
-    return Window(centre_mm=tuple(c), normal=tuple(n), u_axis=tuple(ax),
-                  half_size_mm=(float(along), float(refl.width_mm / 2)))
+def _mirror_windows(ir, lamp, refl) -> list[Window]:
+    """The mirror behind a lamp as the ``reflector`` effect draws it: one rectangle (a plane
+    mirror), or one per facet (a prism,
+    :func:`~lbscene.engine.light.effects.builtin.reflector.mirror_facets`)."""
+    from lbscene.engine.light.effects.builtin.reflector import mirror_facets
+
+    return [Window(centre_mm=tuple(float(x) for x in r.centre), normal=tuple(float(x) for x in r.normal),
+                   u_axis=tuple(float(x) for x in r.u), half_size_mm=(float(r.half[0]), float(r.half[1])))
+            for r in mirror_facets(ir, lamp, refl)]
 
 
 def _rect_quads(centre, normal, u, half, hole=None):
@@ -298,28 +294,34 @@ def _occluder_meshes(ir, lighting: str, effects: dict, mat, lum_group, notes: li
     return meshes
 
 
-def _point_lamp(lamp, bands, R_bands, profile, win, lum_group) -> list:
+def _image_id(lamp, wins, k) -> str:
+    """``lamp.<id>.mirror`` (one mirror rectangle) or ``lamp.<id>.mirror<k>`` (facet k of a prism)."""
+    return _jid(f"lamp.{lamp.id}.mirror" + ("" if len(wins) == 1 else str(k)))
+
+
+def _point_lamp(lamp, bands, R_bands, profile, wins, lum_group) -> list:
     """A point lamp (radius 0, as in the analytic model: exact inverse-square law, hard shadows;
-    camera rays do not see it, see the environment maps' direct product) and its mirror image."""
+    camera rays do not see it, see the environment maps' direct product) and its mirror images
+    (one per window: a plane mirror's, or each facet of a prism)."""
     pos = tuple(float(c) for c in lamp.position_mm)
     out = [PointEmitters(id=_jid(f"lamp.{lamp.id}"), aim=lamp.aim, positions_mm=(pos,),
                          intensity_W_sr_nm=tuple(float(x) for x in bands), profile=profile,
                          radius_mm=0.0, group=lum_group)]
-    if win is not None:
+    for k, win in enumerate(wins):
         n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
         img = _reflect_point(pos, c, n)
         out.append(PointEmitters(
-            id=_jid(f"lamp.{lamp.id}.mirror"), aim=tuple(_reflect(lamp.aim, n)),
+            id=_image_id(lamp, wins, k), aim=tuple(_reflect(lamp.aim, n)),
             positions_mm=(tuple(float(x) for x in img),),
             intensity_W_sr_nm=tuple(float(x) for x in R_bands),
             profile=_mirrored_profile(profile, n), radius_mm=0.0, group=lum_group, window=win))
     return out
 
 
-def _surface_lamp(lamp, bands, R_bands, profile, win, effects: dict, lum_group) -> list:
+def _surface_lamp(lamp, bands, R_bands, profile, wins, effects: dict, lum_group) -> list:
     """The lamp's own surface — a tube's lateral surface (and caps), a panel's rectangle, a
     bulb's sphere — of radiance I_ref / A (a tube-end falloff weights it along the axis), and
-    its mirror image."""
+    its mirror images (one per window: a plane mirror's, or each facet of a prism)."""
     v, t, area_m2 = _lamp_mesh(lamp)
     tef = _effect(effects, "tube_end_falloff", lamp.id)
     aw = None
@@ -331,7 +333,7 @@ def _surface_lamp(lamp, bands, R_bands, profile, win, effects: dict, lum_group) 
         id=_jid(f"lamp.{lamp.id}"), vertices_mm=v, triangles=t,
         radiance_W_sr_m2_nm=tuple(float(x) for x in bands / area_m2),
         profile=profile, aim=lamp.aim, group=lum_group, visible_to_camera=False, axial_weight=aw)]
-    if win is not None:
+    for k, win in enumerate(wins):
         # its mirror image (the image method): the same surface mirrored across the mirror
         # plane, radiance × the mirror's reflectance, shining only through the mirror
         n, c = np.asarray(win.normal), np.asarray(win.centre_mm)
@@ -341,7 +343,7 @@ def _surface_lamp(lamp, bands, R_bands, profile, win, effects: dict, lum_group) 
             "centre_mm": tuple(float(x) for x in _reflect_point(aw.centre_mm, c, n)),
             "axis": tuple(_reflect(aw.axis, n))})
         out.append(AreaEmitter(
-            id=_jid(f"lamp.{lamp.id}.mirror"), vertices_mm=tuple(tuple(float(x) for x in p) for p in mv),
+            id=_image_id(lamp, wins, k), vertices_mm=tuple(tuple(float(x) for x in p) for p in mv),
             triangles=mt, radiance_W_sr_m2_nm=tuple(float(x) for x in R_bands / area_m2),
             profile=_mirrored_profile(profile, n), aim=tuple(_reflect(lamp.aim, n)),
             group=lum_group, visible_to_camera=False, axial_weight=maw, window=win))
@@ -363,8 +365,8 @@ def _lamp_emitters(ir, lighting: str, effects: dict, lum_group, turning: bool,
         profile = _profile(lamp, effects)
         rp = _effect(effects, "reflector", lamp.id)
         refl = ir.reflectors.get(lamp.reflector) if (rp is not None and lamp.reflector) else None
-        win = _mirror_window(lamp, refl) if refl is not None else None
-        if win is not None and turning:
+        wins = _mirror_windows(ir, lamp, refl) if refl is not None else []
+        if wins and turning:
             notes.append(f"lamp {lamp.id}: its mirror image shines through the mirror as it lies at "
                          "platform rotation 0; at other rotations the window does not turn with the "
                          "luminaire (products with a group transform are not exact there)")
@@ -373,13 +375,15 @@ def _lamp_emitters(ir, lighting: str, effects: dict, lum_group, turning: bool,
             R = np.clip(refl.reflectance.array_1nm * float(rp.get("reflectance_scale", 1.0)), 0, 1)
             R_bands = g.integrate(spec * R)
         if lamp.kind == "point":
-            emitters.extend(_point_lamp(lamp, bands, R_bands, profile, win, lum_group))
+            emitters.extend(_point_lamp(lamp, bands, R_bands, profile, wins, lum_group))
         else:
-            emitters.extend(_surface_lamp(lamp, bands, R_bands, profile, win, effects, lum_group))
-        if win is not None:
-            # the mirror itself: an absorbing plate that blocks the lamp's back light
+            emitters.extend(_surface_lamp(lamp, bands, R_bands, profile, wins, effects, lum_group))
+        for k, win in enumerate(wins):
+            # the mirror itself (each facet of a prism): an absorbing plate that blocks the
+            # lamp's back light
             mv_, mt_ = _rect_quads(win.centre_mm, win.normal, win.u_axis, win.half_size_mm)
-            meshes.append(JobMesh(id=_jid(f"mirror.{lamp.id}"), material=BLACK, vertices_mm=mv_,
+            mid = f"mirror.{lamp.id}" + ("" if len(wins) == 1 else f".facet{k}")
+            meshes.append(JobMesh(id=_jid(mid), material=BLACK, vertices_mm=mv_,
                                   triangles=mt_, role="mirror", group=lum_group))
     return emitters, meshes
 

@@ -302,8 +302,25 @@ class Reflector(StrictModel):
     reflectance: SpectrumSpec = Field(description="Spectral reflectance of the mirror, 0..1.")
     distance_mm: float = Field(gt=0, le=1000, description="Lamp axis to mirror distance.")
     normal: Direction = Field((0.0, 0.0, -1.0), description="Direction the mirror faces.")
-    width_mm: float = Field(gt=0, le=5000, description="Mirror extent across the lamp axis.")
+    width_mm: float = Field(gt=0, le=5000, description="Mirror extent across the lamp axis (a prism: "
+                            "both facets together, each width_mm / 2 from the apex).")
+    apex_angle_deg: float | None = Field(
+        None, gt=0, le=180,
+        description="prism only: the angle between its two plane facets, on the lamp's side (180: a "
+                    "plane). The facets meet at an apex parallel to the lamp's axis, distance_mm behind "
+                    "the lamp, and fold toward it (a V reflector). Default 120 (the smallest angle at "
+                    "which light from a lamp on the prism's axis meets one facet only).")
     provenance: Provenance | None = None
+
+    @model_validator(mode="after")
+    def _apex_only_for_prism(self):
+        if self.apex_angle_deg is not None and self.type != "prism":
+            raise ValueError(f"apex_angle_deg applies to prism reflectors only (this one is {self.type!r})")
+        return self
+
+
+#: a prism reflector's apex angle when the booth declares none (degrees)
+PRISM_APEX_ANGLE_DEFAULT_DEG = 120.0
 
 
 class RoughnessScattering(StrictModel):

@@ -37,9 +37,9 @@ under the sample position at its height.  Readings are ideal cosine receivers: a
 What it refuses
 ---------------
 What the provider refuses (``LB603``, located at the booth file's line): effects with no
-Mitsuba representation (``end falloff``, ``reflector``, non-isotropic angular profiles, a
-Lambertian diffuse-fraction plate, …), glossy materials, occluders that block some lamps
-only.  Without the ``mitsuba`` package: ``LB604``.
+Mitsuba representation (``end falloff``, a reflector other than a plane or a prism,
+non-isotropic angular profiles, a Lambertian diffuse-fraction plate, …), glossy materials,
+occluders that block some lamps only.  Without the ``mitsuba`` package: ``LB604``.
 
 Examples
 --------

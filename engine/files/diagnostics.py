@@ -76,6 +76,7 @@ CODES: dict[str, str] = {
     "LB311": "provenance marks values as estimates",
     "LB312": "mesh face is degenerate (zero area) or its normal overflows",
     "LB313": "mesh reaches outside the booth",
+    "LB314": "a reflector the model draws only in part",
     "LB400": "measurement file: missing or unexpected column",
     "LB401": "measurement file: value is not a finite number",
     "LB402": "measurement file: negative value",

@@ -67,6 +67,15 @@ def load_booth(path: Path | str, allowed_dirs: Iterable[Path] = ()) -> LoadedDoc
     return doc
 
 
+def _apex_angle(r) -> float | None:
+    """A prism reflector's apex angle: declared, or the schema's default; None for other types."""
+    from lbscene.schemas.booth import PRISM_APEX_ANGLE_DEFAULT_DEG
+
+    if r.type != "prism":
+        return None
+    return float(r.apex_angle_deg if r.apex_angle_deg is not None else PRISM_APEX_ANGLE_DEFAULT_DEG)
+
+
 def compile_booth(path: Path | str, grid: BandGrid = DEFAULT_GRID,
                   allowed_dirs: Iterable[Path] = ()) -> SceneIR:
     """Booth folder or file → SceneIR (raises :class:`LbsceneUserError` on any error)."""
@@ -249,7 +258,8 @@ def compile_loaded(doc: LoadedDocument, grid: BandGrid = DEFAULT_GRID) -> SceneI
                for fid, f in booth.filters.items()}
     reflectors = {rid: IRReflector(id=rid, type=r.type,
                                    reflectance=spectrum(r.reflectance, "reflectance", f"reflector {rid}"),
-                                   distance_mm=r.distance_mm, normal=_unit(r.normal), width_mm=r.width_mm)
+                                   distance_mm=r.distance_mm, normal=_unit(r.normal), width_mm=r.width_mm,
+                                   apex_angle_deg=_apex_angle(r))
                   for rid, r in booth.reflectors.items()}
     diffuser = None
     if booth.diffuser is not None:

@@ -182,6 +182,8 @@ class IRReflector(_IR):
     distance_mm: float
     normal: Vec3
     width_mm: float
+    #: a prism's apex angle (degrees, the declared or the default one); None for other types
+    apex_angle_deg: float | None = None
 
 
 class IRDiffuser(_IR):

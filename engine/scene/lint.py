@@ -22,6 +22,9 @@ LB307  effect parameter names something the booth lacks            error
 LB310  illuminance at the sample (forward model with the booth's   warning
        effects) outside the viewing standard's range
 LB311  values marked as estimates                                  info
+LB314  a reflector the model draws only in part (a parabolic        warning
+       trough drawn as a plane; a prism under 120° whose facet-to-
+       facet reflections are left out)
 =====  ==========================================================  ========
 """
 
@@ -379,9 +382,32 @@ def _provenance(doc: LoadedDocument) -> list[Diagnostic]:
                        severity=Severity.INFO)]
 
 
+def _reflector_shapes(doc: LoadedDocument) -> list[Diagnostic]:
+    """LB314 (warning): reflectors that the model (the ``reflector`` effect: first-order mirror
+    images of plane facets) draws only in part."""
+    booth: Booth = doc.model
+    used = {lp.reflector for lp in booth.lamps if lp.reflector}
+    diags: list[Diagnostic] = []
+    for rid, r in booth.reflectors.items():
+        if rid not in used:
+            continue
+        if r.type == "parabolic_trough":
+            diags.append(Diagnostic(
+                "LB314", f"reflector '{rid}' is a parabolic trough: the model and the Cycles bakes draw it as a "
+                "plane mirror of the same width (its focusing is not modelled; the Mitsuba truth refuses it)",
+                doc.locate("reflectors", rid, "type"), severity=Severity.WARNING))
+        elif r.type == "prism" and r.apex_angle_deg is not None and r.apex_angle_deg < 120.0:
+            diags.append(Diagnostic(
+                "LB314", f"reflector '{rid}': apex angle {r.apex_angle_deg:g}° is under 120°, where light "
+                "meets both facets; the model draws one reflection per facet and leaves the facet-to-facet "
+                "reflections out (Mitsuba and Cycles draw them)", doc.locate("reflectors", rid, "apex_angle_deg"),
+                severity=Severity.WARNING, expected="apex_angle_deg >= 120"))
+    return diags
+
+
 #: The rules of :func:`lint_booth`, in the order their diagnostics are listed.
 RULES = (_duplicate_ids, _references, _effect_references, _placement, _lamp_clearance, _work_bounds,
-         _spectra, _provenance)
+         _spectra, _reflector_shapes, _provenance)
 
 
 def lint_booth(doc: LoadedDocument) -> list[Diagnostic]:

@@ -252,6 +252,22 @@ def _define_materials(stage, ir: SceneIR, light_1nm, *, define: bool) -> None:
         else:
             stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
                 "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+    for r in ir.reflectors.values():
+        # a mirror: metallic, smooth, its colour the reflectance's (UsdPreviewSurface takes a
+        # metal's specular colour from diffuseColor)
+        path = f"/Booth/Materials/{_prim_name('reflector_' + r.id)}"
+        rgb = Gf.Vec3f(*adapted_linear_srgb(np.clip(r.reflectance.array_1nm, 0, 1), light_1nm))
+        if define:
+            material = UsdShade.Material.Define(stage, path)
+            shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
+            shader.CreateIdAttr("UsdPreviewSurface")
+            shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.0)
+            shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(1.0)
+            shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+            material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+        else:
+            stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
+                "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
     if ir.diffuser is not None:
         d = ir.diffuser
         path = "/Booth/Materials/Diffuser"
@@ -419,7 +435,29 @@ def _build(ir: SceneIR, lighting: str | None):
         prim.CreateAttribute("lbscene:reflector:type", Sdf.ValueTypeNames.Token, custom=True).Set(r.type)
         prim.CreateAttribute("lbscene:reflector:distance_mm", Sdf.ValueTypeNames.Float,
                              custom=True).Set(float(r.distance_mm))
+        prim.CreateAttribute("lbscene:reflector:width_mm", Sdf.ValueTypeNames.Float,
+                             custom=True).Set(float(r.width_mm))
+        prim.CreateAttribute("lbscene:reflector:normal", Sdf.ValueTypeNames.Vector3f,
+                             custom=True).Set(Gf.Vec3f(*map(float, r.normal)))
+        if r.apex_angle_deg is not None:
+            prim.CreateAttribute("lbscene:reflector:apex_angle_deg", Sdf.ValueTypeNames.Float,
+                                 custom=True).Set(float(r.apex_angle_deg))
         _spectral(prim, ir, "reflectance", r.reflectance)
+        # the mirror behind each lamp that uses it, as the model draws it: one rectangle (a plane
+        # mirror) or its two facets (a prism), facing the lamp, one-sided
+        for lamp in ir.lamps:
+            if lamp.reflector != r.id:
+                continue
+            verts, tris = _mirror_mesh(ir, lamp, r)
+            mesh = UsdGeom.Mesh.Define(stage, prim.GetPath().AppendChild(_prim_name(lamp.id)))
+            mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in verts]))
+            mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
+            mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for t in tris for i in t]))
+            mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            mesh.CreateDoubleSidedAttr(False)
+            mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*adapted_linear_srgb(
+                np.clip(r.reflectance.array_1nm, 0, 1), lighting_spectrum_1nm(ir, default)))]))
+            _bind(stage, mesh.GetPrim(), f"/Booth/Materials/{_prim_name('reflector_' + r.id)}")
     if ir.diffuser is not None:
         d = ir.diffuser
         # a thin plate at the diffuser's mid-plane, seen from both sides, with a transmissive material
@@ -468,6 +506,22 @@ def _build(ir: SceneIR, lighting: str | None):
     cam.CreateHorizontalApertureAttr(float(2 * CAMERA_FOCAL_LENGTH * math.tan(view["angle_x_rad"] / 2)))
     cam.CreateVerticalApertureAttr(float(2 * CAMERA_FOCAL_LENGTH * math.tan(view["angle_y_rad"] / 2)))
     return stage
+
+
+def _mirror_mesh(ir: SceneIR, lamp, refl) -> tuple[np.ndarray, list[tuple[int, int, int]]]:
+    """Triangles of a lamp's mirror: its rectangles
+    (:func:`~lbscene.engine.light.effects.builtin.reflector.mirror_facets`), wound so that their
+    normal faces the lamp."""
+    from lbscene.engine.light.effects.builtin.reflector import mirror_facets
+
+    pts, tris = [], []
+    for r in mirror_facets(ir, lamp, refl):
+        c, u, v = np.asarray(r.centre, float), np.asarray(r.u, float), np.asarray(r.v, float)
+        k = len(pts)
+        pts += [c - r.half[0] * u - r.half[1] * v, c + r.half[0] * u - r.half[1] * v,
+                c + r.half[0] * u + r.half[1] * v, c - r.half[0] * u + r.half[1] * v]
+        tris += [(k, k + 1, k + 2), (k, k + 2, k + 3)]        # counter-clockwise about normal = u × v
+    return np.asarray(pts), tris
 
 
 def occluder_mesh(o) -> tuple[np.ndarray, list[tuple[int, int, int]]]:

@@ -33,7 +33,8 @@ mirror (reflector)   a one-sided ``rectangle`` (the lamp's mirror:
                      ``width_mm`` across its axis) of ``conductor``
                      ``material: none`` whose ``specular_reflectance``
                      is the declared reflectance (``reflector`` on;
-                     plane mirrors only); its back absorbs
+                     plane mirrors, and prisms as their two facets);
+                     its back absorbs
 diffuser plate       a closed box of ``roughdielectric`` (GGX,
                      :math:`α = \\text{roughness}^2` as in Blender's Glass BSDF,
                      the declared ``ior`` and ``thickness_mm``; mid-plane at
@@ -477,9 +478,9 @@ class MitsubaTruth:
                 out.append("reflector 'lamps' (mirrors of some lamps only) has no Mitsuba representation")
             for lamp, _ in ir.lamps_on(self.lighting):
                 refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
-                if refl is not None and refl.type != "plane":
+                if refl is not None and refl.type not in ("plane", "prism"):
                     out.append(f"lamp {lamp.id!r}: reflector {lamp.reflector!r} is a {refl.type!r}; only "
-                               "plane mirrors have a Mitsuba representation here")
+                               "plane and prism mirrors have a Mitsuba representation here")
         if "diffuser" in fx and ir.diffuser is not None:
             d, p = ir.diffuser, fx["diffuser"]
             sc = d.scattering
@@ -648,10 +649,12 @@ class MitsubaTruth:
         return out
 
     def _mirrors(self) -> dict:
-        """One conductor rectangle per lamp that is on and has a reflector (``reflector`` on)."""
+        """One conductor rectangle per facet of the mirror of every lamp that is on and has a
+        reflector (``reflector`` on): one for a plane mirror, two for a prism
+        (:func:`~lbscene.engine.light.effects.builtin.reflector.mirror_facets`)."""
         if "reflector" not in self.effects:
             return {}
-        from lbscene.engine.light.effects.builtin.reflector import mirror_rect
+        from lbscene.engine.light.effects.builtin.reflector import mirror_facets
 
         ir = self.ir
         out = {}
@@ -659,14 +662,17 @@ class MitsubaTruth:
             refl = ir.reflectors.get(lamp.reflector) if lamp.reflector else None
             if refl is None:
                 continue
-            r = mirror_rect(ir, lamp, refl)
-            n, u = _unit(r.normal), _unit(r.u)
-            out[f"mirror_{lamp.id}"] = {
-                "type": "rectangle",
-                "to_world": _mi(self.variant).ScalarTransform4f(
-                    _frame(u, np.cross(n, u), n, np.asarray(r.centre, float), r.half[0], r.half[1], 1.0).tolist()),
-                "bsdf": {"type": "conductor", "material": "none",
-                         "specular_reflectance": _spectrum(np.clip(refl.reflectance.array_1nm, 0.0, 1.0))}}
+            facets = mirror_facets(ir, lamp, refl)
+            for k, r in enumerate(facets):
+                n, u = _unit(r.normal), _unit(r.u)
+                key = f"mirror_{lamp.id}" if len(facets) == 1 else f"mirror_{lamp.id}_facet{k}"
+                out[key] = {
+                    "type": "rectangle",
+                    "to_world": _mi(self.variant).ScalarTransform4f(
+                        _frame(u, np.cross(n, u), n, np.asarray(r.centre, float), r.half[0], r.half[1],
+                               1.0).tolist()),
+                    "bsdf": {"type": "conductor", "material": "none",
+                             "specular_reflectance": _spectrum(np.clip(refl.reflectance.array_1nm, 0.0, 1.0))}}
         return out
 
     @staticmethod

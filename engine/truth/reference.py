@@ -9,7 +9,8 @@ pass by symmetry:
                     forward model                         this reference
 ==================  ====================================  ===========================================
 lamp                N = 100 midpoints (+ refined near)    thousands of jittered stratified samples
-occluders/mirrors   vectorised segment tests              per-sample ray/plane tests (own code)
+occluders/mirrors   vectorised segment tests              per-sample ray/plane tests (own code; a
+                                                          prism's facets turned about its apex)
 diffuser, diffuse   polygon form factors of plate cells   point-to-point Monte Carlo over the plate
 inter-reflection    patches ~100 mm, exact polygon        finer patches, form factors by cosine-
                     form factors, LU per band             weighted ray casting, Jacobi iteration,
@@ -319,7 +320,23 @@ class ReferenceEngine:
         if np.linalg.norm(u - n * (u @ n)) < 1e-9:
             u = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
         along = lamp.length_mm / 2 if lamp.kind in ("tube", "panel") else refl.width_mm / 2
-        return refl, _Rect(centre, n, u, (along, refl.width_mm / 2))
+        if refl.type != "prism":
+            return refl, [_Rect(centre, n, u, (along, refl.width_mm / 2))]
+        # a prism: each half of the plane mirror turned about the apex line (through ``centre``,
+        # along the lamp's axis) toward the lamp by (180° − apex angle) / 2
+        u = _norm(u - n * (u @ n))
+        v = np.cross(n, u)
+        beta = np.radians((180.0 - float(refl.apex_angle_deg)) / 2.0)
+
+        def turn(x, a):                     # Rodrigues: x about u by the angle a
+            return x * np.cos(a) + np.cross(u, x) * np.sin(a) + u * (u @ x) * (1.0 - np.cos(a))
+
+        facets = []
+        for s in (1.0, -1.0):
+            e = turn(s * v, s * beta)
+            facets.append(_Rect(centre + e * refl.width_mm / 4, turn(n, s * beta), u,
+                                (along, refl.width_mm / 4)))
+        return refl, facets
 
     def _occluders(self, lamp_id):
         occ = self.fx.get("aperture_occlusion")
@@ -366,20 +383,20 @@ class ReferenceEngine:
             blockers = self._occluders(lamp.id)
             mirror = None
             if rf is not None and lamp.reflector and (rf.lamps is None or lamp.id in rf.lamps):
-                refl, rect = self._mirror(lamp)
-                mirror = rect
-                # image: reflect every sample through the mirror plane
-                h = (pos - rect.c) @ rect.n
-                ipos = pos - 2 * h[:, None] * rect.n[None, :]
-                inrm = None if nrm is None else nrm - 2 * (nrm @ rect.n)[:, None] * rect.n[None, :]
-                R = np.clip(refl.reflectance.array_1nm * rf.reflectance_scale, 0, 1)
-                # the lamp itself stands between its image and what lies beyond it
-                body = _own_body(lamp)
-                out.append(dict(group=lamp.group, lamp=lamp.id, pos=ipos, nrm=inrm, w=w,
-                                aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
-                                prof=prof, spectrum=spec * R, image_of=rect,
-                                blockers=blockers + ([body] if body is not None else []),
-                                mirror=None))
+                refl, mirror = self._mirror(lamp)
+                for rect in mirror:
+                    # image: reflect every sample through the mirror's (or the facet's) plane
+                    h = (pos - rect.c) @ rect.n
+                    ipos = pos - 2 * h[:, None] * rect.n[None, :]
+                    inrm = None if nrm is None else nrm - 2 * (nrm @ rect.n)[:, None] * rect.n[None, :]
+                    R = np.clip(refl.reflectance.array_1nm * rf.reflectance_scale, 0, 1)
+                    # the lamp itself stands between its image and what lies beyond it
+                    body = _own_body(lamp)
+                    out.append(dict(group=lamp.group, lamp=lamp.id, pos=ipos, nrm=inrm, w=w,
+                                    aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
+                                    prof=prof, spectrum=spec * R, image_of=rect,
+                                    blockers=blockers + ([body] if body is not None else []),
+                                    mirror=None))
             out.append(dict(group=lamp.group, lamp=lamp.id, pos=pos, nrm=nrm, w=w,
                             aim=np.asarray(lamp.aim), axis=np.asarray(lamp.axis),
                             prof=prof, spectrum=spec, image_of=None, blockers=blockers, mirror=mirror))
@@ -437,8 +454,8 @@ class ReferenceEngine:
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
                 if src["image_of"] is not None:
                     val = val * src["image_of"].crosses(src["pos"], p)
-                if src["mirror"] is not None:
-                    val = val * ~src["mirror"].crosses(src["pos"], p)
+                for m in src["mirror"] or ():
+                    val = val * ~m.crosses(src["pos"], p)
                 for b in src["blockers"]:
                     val = val * ~b.crosses(src["pos"], p)
                 if plate is not None:
@@ -542,8 +559,8 @@ class ReferenceEngine:
                 top = pts + [0, 0, 1e-3]
                 if src["image_of"] is not None:
                     val = val * src["image_of"].crosses(src["pos"], top)
-                if src["mirror"] is not None:
-                    val = val * ~src["mirror"].crosses(src["pos"], top)
+                for m in src["mirror"] or ():
+                    val = val * ~m.crosses(src["pos"], top)
                 for b in src["blockers"]:
                     val = val * ~b.crosses(src["pos"], top)
                 out.append((src["group"], src["spectrum"], val.sum(1)))

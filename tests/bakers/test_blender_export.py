@@ -181,8 +181,10 @@ def test_bake_reference_is_current(tmp_path):
 @pytest.mark.slow
 def test_spectralight_masks_boxes_and_mirrors(tmp_path):
     """The SpectraLight QC's D65 lighting: the filter masks and lamp boxes carry their declared
-    materials, each prism mirror is a 130 × 118 mm plate 35 mm above its lamp (the booth file's
-    reflector) with a mirror material of the reflector's ~0.88 reflectance, the lamps are tubes."""
+    materials, each prism mirror is two 65 × 118 mm facets meeting 35 mm above its lamp at 120°
+    (the booth file's reflector: each 30° off the horizontal, 56.3 mm wide seen from below, its
+    lower edge 32.5 mm under the apex) with a mirror material of the reflector's ~0.88
+    reflectance, the lamps are tubes."""
     pytest.importorskip("bpy")
     import lbscene
 
@@ -194,13 +196,18 @@ def test_spectralight_masks_boxes_and_mirrors(tmp_path):
         assert objs[f"occluder.D65_{side}_mask"]["materials"] == ["mat.mask_black"]
         for wall in ("inner", "outer"):
             assert objs[f"occluder.D65_{side}_box_{wall}"]["materials"] == ["mat.luminaire_white"]
-        mirror = objs[f"D65/mirror.D65_{side}"]
-        v = np.asarray(mirror["vertices_m"]) * 1e3
-        assert np.ptp(v, axis=0) == pytest.approx([130, 118, 0], abs=0.01)
-        assert v[:, 2] == pytest.approx(725 + 35, abs=0.01)
-        assert v[:, 0].mean() == pytest.approx(-380 if side == "left" else 380, abs=0.01)
-        assert mirror["glossy_roughness"] == 0.0
-        assert mirror["glossy_rgb"] == pytest.approx([0.88] * 3, abs=0.02)
+        x0 = -380 if side == "left" else 380
+        centres = []
+        for k in (0, 1):
+            mirror = objs[f"D65/mirror.D65_{side}.facet{k}"]
+            v = np.asarray(mirror["vertices_m"]) * 1e3
+            assert np.ptp(v, axis=0) == pytest.approx([65 * math.cos(math.radians(30)), 118, 32.5], abs=0.01)
+            assert v[:, 2].max() == pytest.approx(725 + 35, abs=0.01)
+            centres.append(v[:, 0].mean() - x0)
+            assert mirror["glossy_roughness"] == 0.0
+            assert mirror["glossy_rgb"] == pytest.approx([0.88] * 3, abs=0.02)
+        assert sorted(centres) == pytest.approx([-32.5 * math.cos(math.radians(30)),
+                                                 32.5 * math.cos(math.radians(30))], abs=0.01)
         lamp = objs[f"D65/lamp.D65_{side}"]
         assert lamp["props"]["lbscene_lamp_kind"] == "tube"
         assert lamp["materials"][0].startswith("D65/emitter")

@@ -187,3 +187,23 @@ def test_lamps_that_are_off_stand_in_the_bake_as_black_bodies(tmp_path):
     bodies = {m.id: m for m in job.meshes if m.role == "lamp_body"}
     # the other tube is there (black); point lamps have no body; the lamp that is on emits
     assert set(bodies) == {"lamp_body.M"} and bodies["lamp_body.M"].material == "lbscene_black"
+
+
+@pytest.mark.slow
+def test_prism_mirror_images_against_mitsuba():
+    """~10 s: the validation scene mirror-prism (a tube under a 120° prism mirror, black box) baked
+    by Cycles — the tube mirrored in each facet, shining through it, past the tube — against its
+    committed Mitsuba 3 truth (which draws the facets as conductors, every reflection) along the
+    floor's middle column, the far rows where each facet's edge cuts its image, and two corners."""
+    from pathlib import Path
+
+    from lbscene.engine.truth.validation import read_truth_csv
+
+    scene = Path(__file__).resolve().parents[1] / "data" / "validation" / "mirror-prism"
+    truth = read_truth_csv(scene / "truth-floor.csv")
+    idx = [4, 13, 22, 31, 40, 49, 58, 0, 62]
+    _, lux, noise, _ = bake_points(compile_booth(scene), "L", truth.points_mm[idx], surfaces="black",
+                                   light_paths="direct", samples=4096)
+    want = truth.illuminance_lx[idx]
+    se = np.hypot(noise, truth.std_error_lx[idx] / want)
+    assert np.all(np.abs(lux / want - 1) <= 0.01 + 4 * se), (lux / want, se)

@@ -277,15 +277,15 @@ def test_a_plane_mirror_adds_the_bulbs_image(tmp_path):
     assert np.all(0.9 * law(1600.0) > 10 * K_SIGMA * se)
 
 
-def test_a_mirror_that_is_not_plane_is_refused(tmp_path):
+def test_a_parabolic_mirror_is_refused(tmp_path):
     ir = _booth(tmp_path, "- {id: lamp, type: bulb, position_mm: [0, 0, 1000], radius_mm: 150, reflector: mirror, "
                           "spd: {type: constant, value: 1}, output: {type: peak_intensity_cd, value_cd: 1000}}",
-                extra=MIRROR % "prism")
+                extra=MIRROR % "parabolic_trough")
     with pytest.raises(LbsceneUserError) as e:
         MitsubaTruth(ir, "L", effects={"reflector": {}})
     assert e.value.diagnostics[0].format() == (
         "error LB603: the Mitsuba truth cannot represent this booth: lamp 'lamp': reflector 'mirror' is a "
-        "'prism'; only plane mirrors have a Mitsuba representation here")
+        "'parabolic_trough'; only plane and prism mirrors have a Mitsuba representation here")
 
 
 def test_a_non_isotropic_profile_is_refused(tmp_path):

@@ -48,7 +48,7 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           "rough-diffuser-r030",
           "rough-diffuser-r010",
           # bright luminaire ceilings and mirrors
-          "ceiling-85", "ceiling-85-spaced", "mirror-strip", "mirror-behind",
+          "ceiling-85", "ceiling-85-spaced", "mirror-strip", "mirror-behind", "mirror-prism",
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
           "rough-cavity-45",
           # opal plates (faces matched to the air: the scattering layer alone)
@@ -60,6 +60,7 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "rough-diffuser-r030": 2.0, "rough-diffuser-r010": 2.0,
                       # bright luminaire ceilings and mirrors
                       "ceiling-85": 1.0, "ceiling-85-spaced": 1.0, "mirror-strip": 1.0, "mirror-behind": 1.0,
+                      "mirror-prism": 1.0,
                       # plates
                       "rough-cavity-45": 1.0,
                       "opal-black": 1.0, "opal-grey": 1.0}

@@ -9,6 +9,45 @@ the way, before the mirror and after it); every mirror's back stops the lamps' s
 light.  Two tubes with their mirrors side by side on a rear wall (validation scene
 ``mirror-behind``), or two bulbs under mirrors that tile one plane: a model that mirrored each
 lamp in its own mirror only missed up to 17 % of the light far to the side.
+
+Mirror shapes (:func:`mirror_facets`):
+
+``plane``
+    one rectangle facing ``normal``, ``distance_mm`` behind the lamp's axis, ``width_mm``
+    across it and as long as the lamp.
+``prism``
+    two plane facets meeting at an apex parallel to the lamp's axis, ``distance_mm`` behind it,
+    each ``width_mm / 2`` wide from the apex and folded toward the lamp (a V reflector): with
+    apex angle :math:`α` (``apex_angle_deg``), facet :math:`s = ±1` leaves the apex along
+
+    .. math:: e_s = s \\cos β\\, c + \\sin β\\, n, \\qquad β = (180° - α) / 2,
+
+    (:math:`n` the declared ``normal``, toward the lamp; :math:`c` across the lamp's axis) and
+    faces :math:`n_s = -s \\sin β\\, c + \\cos β\\, n`.  A lamp at distance :math:`d` on the axis
+    has one image per facet, at :math:`d` from the apex and :math:`α` from the lamp seen from
+    it: :math:`d(s \\sin 2β\\, c - \\cos 2β\\, n)` (apex 120°: 0.87 d to the side and 0.5 d behind
+    the apex), so the tube's own body hides it only in part, where a plane mirror's image
+    lies straight behind the tube.  At 180° the two facets are the plane mirror.
+``parabolic_trough``
+    drawn as the plane mirror (the linter says so, ``LB314``).
+
+First order only: each image is seen through its facet's rectangle and past the lamp's body.
+Light reflected twice — facet to facet — is omitted (the light of an image that meets the other
+facet is counted as if it went on).  For a point of the
+lamp at polar angle :math:`φ` from the prism's axis (seen from the apex, toward facet
+:math:`s`), its image in facet :math:`s` lies at :math:`α - φ`, and light from that image
+can reach the other facet only if the image is on the wedge's side of that facet's plane:
+
+.. math:: α - φ < 180° - α/2 \\iff α < 120° + \\tfrac{2}{3} φ .
+
+A lamp on the axis (φ = 0) therefore meets no facet twice for :math:`α ≥ 120°`; a tube of
+radius :math:`r` at :math:`d` adds points up to :math:`φ = \\arcsin(r/d)`, so a fringe of
+double reflections remains up to :math:`α = 120° + \\tfrac23 \\arcsin(r/d)` (a 6 mm tube 35 mm
+from the apex: 126.6°).  At 120° a 2D ray trace (``tests/engine/test_prism_mirror.py``)
+finds 2.5 % of the rays leaving a 13 mm tube 35 mm from the apex meeting both facets (1.2 % for
+a 6 mm tube); below 120° the share grows with the lamp on the axis too (the linter warns,
+``LB314``).  The validation scene ``mirror-prism`` (apex 120°) holds the
+first-order model to Mitsuba 3, which draws every order.
 """
 
 from __future__ import annotations
@@ -20,7 +59,7 @@ from lbscene.engine.light.effects.physics import (EmitterSet, LampSelection, Pat
                                                   lamp_selected, lamps_on)
 from lbscene.engine.light.effects.registry import register_effect
 
-__all__ = ["ReflectorEffect", "mirror_rect", "MIRROR_RING"]
+__all__ = ["ReflectorEffect", "mirror_rect", "mirror_facets", "MIRROR_RING"]
 
 #: lines around a tube's image for the share of it a mirror's edge lets through: the image of a
 #: tube 40 mm in front of a 120 mm mirror is cut by the edge for receivers across a whole row of
@@ -48,6 +87,30 @@ def mirror_rect(ir, lamp, refl):
     return Rectangle(c, n, ax, (along, refl.width_mm / 2))
 
 
+def mirror_facets(ir, lamp, refl) -> list:
+    """The mirror of ``lamp`` (reflector ``refl``) as the plane rectangles it is made of: one for a
+    ``plane`` (and a ``parabolic_trough``, drawn as a plane), :func:`mirror_rect`; two for a
+    ``prism`` (the module docstring): each ``width_mm / 2`` wide from the apex, as long as the
+    plane mirror, facing the lamp."""
+    rect = mirror_rect(ir, lamp, refl)
+    if refl.type != "prism":
+        return [rect]
+    from lbscene.engine.light.geometry import Rectangle
+
+    alpha = float(refl.apex_angle_deg if getattr(refl, "apex_angle_deg", None) is not None else 120.0)
+    beta = np.radians((180.0 - alpha) / 2.0)
+    n, ax = np.asarray(rect.normal, float), np.asarray(rect.u, float)
+    c = np.cross(n, ax)                              # across the lamp's axis, in the apex plane
+    apex = np.asarray(rect.centre, float)
+    fw = refl.width_mm / 2.0
+    out = []
+    for s in (-1.0, 1.0):
+        e = s * np.cos(beta) * c + np.sin(beta) * n
+        ns = -s * np.sin(beta) * c + np.cos(beta) * n
+        out.append(Rectangle(apex + e * (fw / 2.0), ns, ax, (rect.half[0], fw / 2.0)))
+    return out
+
+
 @register_effect
 class ReflectorEffect(PhysicalEffect):
     id = "reflector"
@@ -71,7 +134,7 @@ class ReflectorEffect(PhysicalEffect):
         """The lamp's image in every mirror of the lighting (its own and the other lamps'):
         a plane mirror reflects whatever light reaches it."""
         out = []
-        for owner, refl, rect in _mirrors(ctx, p):
+        for owner, refl, rect, facet in _mirrors(ctx, p):
             n = rect.normal
             pts = es.points_mm - 2.0 * ((es.points_mm - rect.centre) @ n)[:, None] * n[None, :]
             R = np.clip(refl.reflectance.array_1nm * p.reflectance_scale, 0.0, 1.0)
@@ -81,10 +144,13 @@ class ReflectorEffect(PhysicalEffect):
 
             half = None if es.half_step is None else es.half_step - 2.0 * (es.half_step @ n) * n
             tag = f"image:{lamp.reflector}" if owner.id == lamp.id else f"image:{owner.reflector}@{owner.id}"
+            if facet is not None:
+                tag += f"/facet{facet}"
             out.append(es.with_(points_mm=pts, spectrum_1nm=es.spectrum_1nm * R, half_step=half,
                                 spectral_key=es.spectral_key + (f"reflector:{owner.reflector}@{owner.id}",),
                                 direction_map=reflect, tag=tag,
-                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id}))
+                                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id,
+                                      "mirror_facet": facet}))
         return out
 
     @staticmethod
@@ -102,7 +168,10 @@ class ReflectorEffect(PhysicalEffect):
             # lamp's body also stands in the way, after the mirror (as itself) and before it
             # (its mirror image on the image's side of the plane)
             rect = es.meta["mirror"]
-            f = ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+            if es.meta.get("mirror_facet") is None:
+                f = ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+            else:
+                f = _fraction_through_facet(ctx, es, rx, rect)
             body = lamp_body(lamp) if lamp.mount == "booth" else None
             if body is not None:
                 f = f * ctx.fraction_past_body(es, rx, body)
@@ -114,7 +183,7 @@ class ReflectorEffect(PhysicalEffect):
             return [PathChannel(f)]
         # the lamp's straight light: every mirror (its back absorbs) stops what meets it
         f = None
-        for _, _, rect in mirrors:
+        for _, _, rect, _ in mirrors:
             blocked = ctx.fraction_hitting(es, rx, rect)
             if blocked.any():
                 f = (1.0 - blocked) if f is None else f * (1.0 - blocked)
@@ -122,14 +191,18 @@ class ReflectorEffect(PhysicalEffect):
 
 
 def _mirrors(ctx, p) -> list:
-    """``(owner lamp, reflector, Rectangle)`` of every lamp the lighting switches on that has a
-    mirror (and that the effect's ``lamps`` selects)."""
+    """``(owner lamp, reflector, Rectangle, facet)`` of every facet of every lamp the lighting
+    switches on that has a mirror (and that the effect's ``lamps`` selects): ``facet`` None for a
+    mirror of one rectangle, else its index."""
     ir = ctx.ir
     out = []
     for lamp in lamps_on(ir, ctx.lighting):
         if lamp.reflector and lamp_selected(p, lamp.id) and lamp.reflector in ir.reflectors:
             refl = ir.reflectors[lamp.reflector]
-            out.append((lamp, refl, mirror_rect(ir, lamp, refl)))
+            rects = mirror_facets(ir, lamp, refl)
+            for k, rect in enumerate(rects):
+                facet = None if len(rects) == 1 else k
+                out.append((lamp, refl, rect, facet))
     return out
 
 
@@ -150,3 +223,79 @@ def _mirrored(body, rect):
     if isinstance(body, Ball):
         return replace(body, centre=m(body.centre))
     return body
+
+
+def _fraction_through_facet(ctx, es, rx, rect) -> np.ndarray:
+    """(M, N) share of each image slice's light toward each receiver that passes through a prism
+    facet ``rect``.
+
+    A facet's long edges run along the tube, a few radii from its image, so which part of the
+    image's visible arc a receiver sees through the facet changes smoothly with the receiver;
+    :data:`MIRROR_RING` lines on the image's surface, each in or out, step it (24 lines put the
+    far rows of the validation scene ``mirror-prism`` 3.5 % low; 384 still 0.9 %).  Here each
+    line stands for its arc element and its slice: the element's footprint where its rays cross
+    the facet's plane, a box of half sizes :math:`w_u, w_v` around the crossing point
+    :math:`(x_u, x_v)`, is the element's offset :math:`δ` (half the slice along the axis, half
+    the arc :math:`π r / n` along the tangent) carried to the plane,
+
+    .. math:: Δx = (1 - s)\\left(δ - D\\,\\frac{δ·n}{D·n}\\right),
+
+    (:math:`D` from the line to the receiver, :math:`s` the crossing's fraction of it), and its
+    share inside the facet is the product of the overlaps
+    :math:`\\operatorname{clip}\\big((\\min(x+w, H) - \\max(x-w, -H)) / 2w, 0, 1\\big)` along
+    :math:`u` and :math:`v`.  The lines are weighted by their Lambertian :math:`\\max(0, n_k·D)`,
+    as :func:`~lbscene.engine.light.effects.physics.ForwardContext.fraction_hitting` weights them.
+    A point or a bulb's image (no line radius) is tested as a plane mirror's is."""
+    if es.line_axis is None or es.line_radius_mm <= 0:
+        return ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
+    rx = np.asarray(rx, float)
+    half = np.zeros(3) if es.half_step is None else np.asarray(es.half_step, float)
+
+    def overlap(x, w, H):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            soft = np.clip((np.minimum(x + w, H) - np.maximum(x - w, -H)) / (2.0 * w), 0.0, 1.0)
+        return np.where(w > 1e-9, soft, (np.abs(x) <= H).astype(float))
+
+    def compute():
+        a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+        a = np.asarray(a, float) / np.linalg.norm(a)
+        e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(a, e1)
+        c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+        u, v = np.asarray(rect.u, float), np.asarray(rect.v, float)
+        r, lines = float(es.line_radius_mm), MIRROR_RING
+        pts = np.asarray(es.points_mm, float)
+        d = rx[:, None, :] - pts[None, :, :]
+        hR = (rx - c) @ n
+        num = np.zeros(d.shape[:2])
+        den = np.zeros(d.shape[:2])
+        for k in range(lines):
+            phi = 2.0 * np.pi * (k + 0.5) / lines
+            nk = np.cos(phi) * e1 + np.sin(phi) * e2
+            w = np.clip(d @ nk, 0.0, None)
+            P = pts + r * nk
+            D = rx[:, None, :] - P[None, :, :]
+            hP = (P - c) @ n
+            Dn = hR[:, None] - hP[None, :]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = np.where(np.abs(Dn) > 1e-12, -hP[None, :] / Dn, -1.0)
+                ok = (s > 1e-9) & (s < 1.0 - 1e-9)
+                X = P[None, :, :] + s[..., None] * D - c
+                xu, xv = X @ u, X @ v
+
+                def foot(delta):
+                    return (1.0 - s)[..., None] * (delta - D * ((delta @ n) / Dn)[..., None])
+
+                fa = foot(half)
+                ft = foot(np.cross(a, nk) * (np.pi * r / lines))
+            wu = np.abs(fa @ u) + np.abs(ft @ u)
+            wv = np.abs(fa @ v) + np.abs(ft @ v)
+            cov = np.where(ok, overlap(xu, wu, rect.half[0]) * overlap(xv, wv, rect.half[1]), 0.0)
+            num += w * np.nan_to_num(cov)
+            den += w
+        return np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+
+    key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half,
+           np.asarray([es.line_radius_mm, MIRROR_RING]))
+    return ctx.memo("hit:facet", key, compute)
