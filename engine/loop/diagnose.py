@@ -945,6 +945,10 @@ def _decide(base_explains: bool, singles, pairs) -> Verdict:
             tied = sorted(tied + same, key=lambda h: (h[4] if len(h) > 4 else 0, -h[1]))
         else:
             tied = sorted(tied, key=lambda h: -h[1])
+        # two hypotheses of hardware that add the same effects (the ceiling's and the walls'
+        # reflectance) are one alternative of the verdict, which names effects: the best of them
+        seen: set = set()
+        tied = [h for h in tied if not (h[0] in seen or seen.add(h[0]))]
         if len(tied) == 1:
             return Verdict("missing", best[0])
         return Verdict("ambiguous", alternatives=tuple(h[0] for h in tied))

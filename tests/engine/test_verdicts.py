@@ -48,6 +48,11 @@ def test_the_verdict_is_a_value_with_a_short_form():
     # two single effects reach the noise within the tie margin: ambiguous with both
     (False, [(("a",), 50.0, True), (("b",), 45.0, True)], [], "ambiguous:a,b"),
     (False, [(("a",), 50.0, True), (("b",), 30.0, True)], [], "missing:a"),
+    # two hypotheses adding the same effects (the ceiling's and the walls' reflectance) are one
+    # alternative, once: the tie is with the other pair only
+    (False, [(("a",), 80.0, False), (("b",), 40.0, False)],
+     [(("a", "b"), 150.0, True), (("a", "b"), 148.0, True), (("a", "c"), 147.0, True)], "ambiguous:a+b,a+c"),
+    (False, [(("a",), 50.0, True), (("a",), 49.0, True)], [], "missing:a"),
 ])
 def test_decision_rule(base_ok, singles, pairs, want):
     v = _decide(base_ok, singles, pairs)
