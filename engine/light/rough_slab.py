@@ -89,6 +89,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lbscene.engine.files.parallel import for_chunks, worker_count
+
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
            "fresnel_slab_transmittance",
            "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS",
@@ -108,6 +110,9 @@ PHOTONS = 16_000
 MAX_EVENTS = 400
 #: a photon whose weight falls below this stops (its weight is counted as lost)
 MIN_WEIGHT = 1e-3
+#: elements of one block of :meth:`RoughSlab.btdf_sum`'s (cells × directions × incoming) index
+#: array: about 128 MB of indices at a time
+BTDF_SUM_BLOCK_ELEMENTS = 16_000_000
 #: version of the computation (part of the cache key)
 _FORMAT = "rough-slab-2"
 #: plates whose tables travel with lbscene (``(roughness, ior)``; α = roughness²): the shipped
@@ -120,6 +125,17 @@ SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
                   (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
+
+
+
+@lru_cache(maxsize=1)
+def _gauss_legendre_64() -> tuple[np.ndarray, np.ndarray]:
+    """64-point Gauss–Legendre nodes and weights on [-1, 1], once (numpy solves an eigenproblem
+    for them at every call); read-only."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    x.flags.writeable = False
+    w.flags.writeable = False
+    return x, w
 
 
 def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
@@ -346,13 +362,13 @@ class RoughSlab:
     def hemispherical_transmittance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Transmittance of Lambertian light, :math:`T_h = 2\\int_0^1 a^2 T(μ) μ\\, dμ`
         (Gauss–Legendre in μ on the interpolated table)."""
-        x, w = np.polynomial.legendre.leggauss(64)
+        x, w = _gauss_legendre_64()
         mu = 0.5 * (x + 1.0)
         return np.asarray(absorption, float) ** 2 * float(np.sum(w * 0.5 * 2.0 * self.transmittance(mu) * mu))
 
     def hemispherical_reflectance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Reflectance of Lambertian light, :math:`2\\int_0^1 R(μ) μ\\, dμ`."""
-        x, w = np.polynomial.legendre.leggauss(64)
+        x, w = _gauss_legendre_64()
         mu = 0.5 * (x + 1.0)
         return np.asarray([float(np.sum(w * self.reflectance(mu, a) * mu))
                            for a in np.atleast_1d(absorption)]).reshape(np.shape(absorption))
@@ -371,6 +387,63 @@ class RoughSlab:
         t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
         f = (1.0 - t) * self.btdf_table[k, jo, jp] + t * self.btdf_table[k + 1, jo, jp]
         return np.asarray(absorption, float) ** 2 * f
+
+
+    def btdf_sum(self, cos_i, phi_i_rad, cos_o, phi_o_rad, weights) -> np.ndarray:
+        """:math:`\\sum_n f_T(θ_{i,cn}, θ_{o,cm}, φ_{o,cm} - φ_{i,cn})\\, w_{cn}` (1/sr times the
+        weights' unit), ``(C, M)``: per group ``c`` (a plate cell), light arriving from ``N``
+        directions ``(cos_i, phi_i_rad)`` (C, N) with weights ``weights`` (C, N) leaving
+        toward ``M`` directions ``(cos_o, phi_o_rad)`` (C, M).
+
+        The same table lookup as :meth:`btdf` (linear in θ_i between nodes, piecewise constant
+        over the exit bins, non-absorbing), with the θ_i interpolation folded into the weights
+        — :math:`\\sum_n w_n[(1-t_n) f_{k_n} + t_n f_{k_n+1}] = \\sum_n (1-t_n) w_n f_{k_n} + \\sum_n
+        t_n w_n f_{k_n+1}` — and one flat index per (c, m, n) into the table: what was a
+        product of broadcast lookups over a (C, M, N) array and a contraction is two gathers and
+        two batched matrix–vector products.  Equal to ``einsum("cmn,cn->cm", btdf(...), w)`` to
+        rounding."""
+        C, N = np.shape(weights)
+        th_i = np.rad2deg(np.arccos(np.clip(np.asarray(cos_i, float), 0.0, 1.0)))          # (C, N)
+        th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))          # (C, M)
+        K, nt, npf = self.btdf_table.shape
+        k = np.clip(np.searchsorted(THETA_I_DEG, th_i, side="right") - 1, 0, len(THETA_I_DEG) - 2)
+        t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
+        w = np.asarray(weights, float)
+        w_lo = ((1.0 - t) * w)[:, :, None]                                                # (C, N, 1)
+        w_hi = (t * w)[:, :, None]
+        jo = np.clip((th_o / BIN_THETA_DEG).astype(int), 0, nt - 1)                        # (C, M)
+        flat = np.ascontiguousarray(self.btdf_table).reshape(-1)
+        flat_next = np.r_[flat[nt * npf:], np.zeros(nt * npf)]          # node k + 1 at index k's
+        row_n = (k * (nt * npf)).astype(np.intp)                                           # (C, N)
+        row_m = (jo * npf).astype(np.intp)                                                 # (C, M)
+        phi_i = np.asarray(phi_i_rad, float)
+        phi_o = np.asarray(phi_o_rad, float)
+        M = phi_o.shape[1]
+        out = np.empty((C, M))
+        # cells in chunks on the worker threads (numpy releases the GIL), each in blocks of exit
+        # directions: bounded memory however many receivers look at the cells
+        workers = worker_count()
+        cells = max(1, -(-C // workers))
+        step = max(1, BTDF_SUM_BLOCK_ELEMENTS // max(1, workers * cells * N))
+
+        def work(c0, c1):
+            for a in range(0, M, step):
+                b = min(M, a + step)
+                ph = phi_o[c0:c1, a:b, None] - phi_i[c0:c1, None, :]                      # (c, m, N)
+                np.abs(ph, out=ph)
+                np.rad2deg(ph, out=ph)
+                np.subtract(360.0, ph, out=ph, where=ph > 180.0)
+                np.divide(ph, BIN_PHI_DEG, out=ph)
+                idx = ph.astype(np.intp)
+                del ph
+                np.clip(idx, 0, npf - 1, out=idx)
+                idx += row_m[c0:c1, a:b, None]
+                idx += row_n[c0:c1, None, :]
+                out[c0:c1, a:b] = (np.matmul(flat.take(idx), w_lo[c0:c1]) +
+                                   np.matmul(flat_next.take(idx), w_hi[c0:c1]))[..., 0]
+
+        for_chunks(work, C, cells)
+        return out
 
 
 def _shape():
