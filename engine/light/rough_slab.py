@@ -110,9 +110,6 @@ PHOTONS = 16_000
 MAX_EVENTS = 400
 #: a photon whose weight falls below this stops (its weight is counted as lost)
 MIN_WEIGHT = 1e-3
-#: elements of one block of :meth:`RoughSlab.btdf_sum`'s (cells × directions × incoming) index
-#: array: about 128 MB of indices at a time
-BTDF_SUM_BLOCK_ELEMENTS = 16_000_000
 #: version of the computation (part of the cache key)
 _FORMAT = "rough-slab-2"
 #: plates whose tables travel with lbscene (``(roughness, ior)``; α = roughness²): the shipped
@@ -395,56 +392,62 @@ class RoughSlab:
         directions ``(cos_i, phi_i_rad)`` (C, N) with weights ``weights`` (C, N) leaving
         toward ``M`` directions ``(cos_o, phi_o_rad)`` (C, M).
 
-        The same table lookup as :meth:`btdf` (linear in θ_i between nodes, piecewise constant
-        over the exit bins, non-absorbing), with the θ_i interpolation folded into the weights
-        — :math:`\\sum_n w_n[(1-t_n) f_{k_n} + t_n f_{k_n+1}] = \\sum_n (1-t_n) w_n f_{k_n} + \\sum_n
-        t_n w_n f_{k_n+1}` — and one flat index per (c, m, n) into the table: what was a
-        product of broadcast lookups over a (C, M, N) array and a contraction is two gathers and
-        two batched matrix–vector products.  Equal to ``einsum("cmn,cn->cm", btdf(...), w)`` to
-        rounding."""
-        C, N = np.shape(weights)
+        The table lookup of :meth:`btdf` (linear in θ_i between the nodes, piecewise constant
+        over the exit bins, non-absorbing) summed without forming the (C, M, N) lookups.  The
+        θ_i interpolation goes into the weights, :math:`w_n[(1-t_n) f_{k_n} + t_n f_{k_n+1}]`:
+        each incoming direction is a weight vector :math:`W_n` over the nodes.  A (cell, exit
+        direction) pair reads one table entry per node and azimuth bin, and the incoming
+        directions in azimuth bin :math:`j` are those with :math:`φ_i` in the two arcs
+        :math:`φ_o ± [10j°, 10(j+1)°)`: with a cell's incoming directions sorted by azimuth, an
+        arc's weights are a difference of prefix sums :math:`\\sum_n W_n`, so
+
+        .. math:: \\sum_n f_T w_n = \\sum_{a=0}^{35} \\sum_k \\big(S_k(b_{a+1}) - S_k(b_a)\\big)
+                  f_{k, j_o, j(a)},
+
+        36 arcs of 10° from :math:`φ_o - 180°` instead of :math:`N` lookups.  Equal to
+        ``einsum("cmn,cn->cm", btdf(...), w)`` to rounding (an azimuth exactly on a bin edge may
+        fall in the other bin)."""
+        w = np.asarray(weights, float)
+        C, N = w.shape
+        phi_o = np.asarray(phi_o_rad, float)
+        M = phi_o.shape[1]
+        out = np.zeros((C, M))
+        if N == 0 or M == 0:
+            return out
         th_i = np.rad2deg(np.arccos(np.clip(np.asarray(cos_i, float), 0.0, 1.0)))          # (C, N)
         th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))          # (C, M)
         K, nt, npf = self.btdf_table.shape
+        n_arcs = 2 * npf
         k = np.clip(np.searchsorted(THETA_I_DEG, th_i, side="right") - 1, 0, len(THETA_I_DEG) - 2)
         t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
-        w = np.asarray(weights, float)
-        w_lo = ((1.0 - t) * w)[:, :, None]                                                # (C, N, 1)
-        w_hi = (t * w)[:, :, None]
         jo = np.clip((th_o / BIN_THETA_DEG).astype(int), 0, nt - 1)                        # (C, M)
-        flat = np.ascontiguousarray(self.btdf_table).reshape(-1)
-        flat_next = np.r_[flat[nt * npf:], np.zeros(nt * npf)]          # node k + 1 at index k's
-        row_n = (k * (nt * npf)).astype(np.intp)                                           # (C, N)
-        row_m = (jo * npf).astype(np.intp)                                                 # (C, M)
         phi_i = np.asarray(phi_i_rad, float)
-        phi_o = np.asarray(phi_o_rad, float)
-        M = phi_o.shape[1]
-        out = np.empty((C, M))
-        # cells in chunks on the worker threads (numpy releases the GIL), each in blocks of exit
-        # directions: bounded memory however many receivers look at the cells
-        workers = worker_count()
-        cells = max(1, -(-C // workers))
-        step = max(1, BTDF_SUM_BLOCK_ELEMENTS // max(1, workers * cells * N))
+        # arc a (from φ_o − 180° + 10a°) holds |Δφ| bin 17 − a below 18 arcs, a − 18 from there
+        arc_bin = np.r_[np.arange(npf - 1, -1, -1), np.arange(npf)]
+        # arcs' start: φ_o − π taken into [−π, π), the sorted azimuths repeated one turn up
+        s0 = np.where(phi_o - np.pi < -np.pi, phi_o + np.pi, phi_o - np.pi)                # (C, M)
+        edges = s0[:, :, None] + np.arange(n_arcs + 1) * (2.0 * np.pi / n_arcs)             # (C, M, 37)
+        edges[:, :, -1] = s0 + 2.0 * np.pi
 
         def work(c0, c1):
-            for a in range(0, M, step):
-                b = min(M, a + step)
-                ph = phi_o[c0:c1, a:b, None] - phi_i[c0:c1, None, :]                      # (c, m, N)
-                np.abs(ph, out=ph)
-                np.rad2deg(ph, out=ph)
-                np.subtract(360.0, ph, out=ph, where=ph > 180.0)
-                np.divide(ph, BIN_PHI_DEG, out=ph)
-                idx = ph.astype(np.intp)
-                del ph
-                np.clip(idx, 0, npf - 1, out=idx)
-                idx += row_m[c0:c1, a:b, None]
-                idx += row_n[c0:c1, None, :]
-                out[c0:c1, a:b] = (np.matmul(flat.take(idx), w_lo[c0:c1]) +
-                                   np.matmul(flat_next.take(idx), w_hi[c0:c1]))[..., 0]
+            for c in range(c0, c1):
+                kc = k[c]
+                k0, k1 = int(kc.min()), int(kc.max()) + 1
+                order = np.argsort(phi_i[c], kind="stable")
+                W = np.zeros((N, k1 - k0 + 1))
+                W[np.arange(N), kc[order] - k0] = ((1.0 - t[c]) * w[c])[order]
+                W[np.arange(N), kc[order] + 1 - k0] += (t[c] * w[c])[order]
+                ph = phi_i[c][order]
+                S = np.zeros((2 * N + 1, W.shape[1]))
+                np.cumsum(np.concatenate([W, W]), axis=0, out=S[1:])
+                pos = np.searchsorted(np.r_[ph, ph + 2.0 * np.pi], edges[c], side="left")   # (M, 37)
+                arcs = S[pos[:, 1:]] - S[pos[:, :-1]]                                       # (M, 36, Kc)
+                f = self.btdf_table[k0:k1 + 1][:, jo[c]][:, :, arc_bin]                     # (Kc, M, 36)
+                out[c] = np.einsum("mak,kma->m", arcs, f, optimize=True)
 
-        for_chunks(work, C, cells)
+        # cells on the worker threads (numpy releases the GIL)
+        for_chunks(work, C, max(1, -(-C // worker_count())))
         return out
-
 
 def _shape():
     nt = int(round(90.0 / BIN_THETA_DEG))
