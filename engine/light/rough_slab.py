@@ -122,7 +122,9 @@ SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
                   (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
-
+#: elements of one block of :meth:`RoughSlab.btdf_sum`'s (exit directions × arcs × θ_i nodes)
+#: arrays per cell: about 32 MB at a time however many receivers look at the plate
+BTDF_SUM_BLOCK_ELEMENTS = 4_000_000
 
 
 @lru_cache(maxsize=1)
@@ -385,7 +387,6 @@ class RoughSlab:
         f = (1.0 - t) * self.btdf_table[k, jo, jp] + t * self.btdf_table[k + 1, jo, jp]
         return np.asarray(absorption, float) ** 2 * f
 
-
     def btdf_sum(self, cos_i, phi_i_rad, cos_o, phi_o_rad, weights) -> np.ndarray:
         """:math:`\\sum_n f_T(θ_{i,cn}, θ_{o,cm}, φ_{o,cm} - φ_{i,cn})\\, w_{cn}` (1/sr times the
         weights' unit), ``(C, M)``: per group ``c`` (a plate cell), light arriving from ``N``
@@ -440,14 +441,20 @@ class RoughSlab:
                 ph = phi_i[c][order]
                 S = np.zeros((2 * N + 1, W.shape[1]))
                 np.cumsum(np.concatenate([W, W]), axis=0, out=S[1:])
-                pos = np.searchsorted(np.r_[ph, ph + 2.0 * np.pi], edges[c], side="left")   # (M, 37)
-                arcs = S[pos[:, 1:]] - S[pos[:, :-1]]                                       # (M, 36, Kc)
-                f = self.btdf_table[k0:k1 + 1][:, jo[c]][:, :, arc_bin]                     # (Kc, M, 36)
-                out[c] = np.einsum("mak,kma->m", arcs, f, optimize=True)
+                ph2 = np.r_[ph, ph + 2.0 * np.pi]
+                tab = self.btdf_table[k0:k1 + 1]
+                step = max(1, BTDF_SUM_BLOCK_ELEMENTS // (n_arcs * W.shape[1]))
+                for a in range(0, M, step):
+                    b = min(M, a + step)
+                    pos = np.searchsorted(ph2, edges[c, a:b], side="left")                  # (m, 37)
+                    arcs = S[pos[:, 1:]] - S[pos[:, :-1]]                                   # (m, 36, Kc)
+                    f = tab[:, jo[c, a:b]][:, :, arc_bin]                                   # (Kc, m, 36)
+                    out[c, a:b] = np.einsum("mak,kma->m", arcs, f, optimize=True)
 
         # cells on the worker threads (numpy releases the GIL)
         for_chunks(work, C, max(1, -(-C // worker_count())))
         return out
+
 
 def _shape():
     nt = int(round(90.0 / BIN_THETA_DEG))
