@@ -89,6 +89,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lbscene.engine.files.parallel import for_chunks, worker_count
+
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
            "fresnel_slab_transmittance",
            "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS",
@@ -120,6 +122,19 @@ SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
                   (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
+#: elements of one block of :meth:`RoughSlab.btdf_sum`'s (exit directions × arcs × θ_i nodes)
+#: arrays per cell: about 32 MB at a time however many receivers look at the plate
+BTDF_SUM_BLOCK_ELEMENTS = 4_000_000
+
+
+@lru_cache(maxsize=1)
+def _gauss_legendre_64() -> tuple[np.ndarray, np.ndarray]:
+    """64-point Gauss–Legendre nodes and weights on [-1, 1], once (numpy solves an eigenproblem
+    for them at every call); read-only."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    x.flags.writeable = False
+    w.flags.writeable = False
+    return x, w
 
 
 def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
@@ -346,13 +361,13 @@ class RoughSlab:
     def hemispherical_transmittance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Transmittance of Lambertian light, :math:`T_h = 2\\int_0^1 a^2 T(μ) μ\\, dμ`
         (Gauss–Legendre in μ on the interpolated table)."""
-        x, w = np.polynomial.legendre.leggauss(64)
+        x, w = _gauss_legendre_64()
         mu = 0.5 * (x + 1.0)
         return np.asarray(absorption, float) ** 2 * float(np.sum(w * 0.5 * 2.0 * self.transmittance(mu) * mu))
 
     def hemispherical_reflectance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Reflectance of Lambertian light, :math:`2\\int_0^1 R(μ) μ\\, dμ`."""
-        x, w = np.polynomial.legendre.leggauss(64)
+        x, w = _gauss_legendre_64()
         mu = 0.5 * (x + 1.0)
         return np.asarray([float(np.sum(w * self.reflectance(mu, a) * mu))
                            for a in np.atleast_1d(absorption)]).reshape(np.shape(absorption))
@@ -371,6 +386,74 @@ class RoughSlab:
         t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
         f = (1.0 - t) * self.btdf_table[k, jo, jp] + t * self.btdf_table[k + 1, jo, jp]
         return np.asarray(absorption, float) ** 2 * f
+
+    def btdf_sum(self, cos_i, phi_i_rad, cos_o, phi_o_rad, weights) -> np.ndarray:
+        """:math:`\\sum_n f_T(θ_{i,cn}, θ_{o,cm}, φ_{o,cm} - φ_{i,cn})\\, w_{cn}` (1/sr times the
+        weights' unit), ``(C, M)``: per group ``c`` (a plate cell), light arriving from ``N``
+        directions ``(cos_i, phi_i_rad)`` (C, N) with weights ``weights`` (C, N) leaving
+        toward ``M`` directions ``(cos_o, phi_o_rad)`` (C, M).
+
+        The table lookup of :meth:`btdf` (linear in θ_i between the nodes, piecewise constant
+        over the exit bins, non-absorbing) summed without forming the (C, M, N) lookups.  The
+        θ_i interpolation goes into the weights, :math:`w_n[(1-t_n) f_{k_n} + t_n f_{k_n+1}]`:
+        each incoming direction is a weight vector :math:`W_n` over the nodes.  A (cell, exit
+        direction) pair reads one table entry per node and azimuth bin, and the incoming
+        directions in azimuth bin :math:`j` are those with :math:`φ_i` in the two arcs
+        :math:`φ_o ± [10j°, 10(j+1)°)`: with a cell's incoming directions sorted by azimuth, an
+        arc's weights are a difference of prefix sums :math:`\\sum_n W_n`, so
+
+        .. math:: \\sum_n f_T w_n = \\sum_{a=0}^{35} \\sum_k \\big(S_k(b_{a+1}) - S_k(b_a)\\big)
+                  f_{k, j_o, j(a)},
+
+        36 arcs of 10° from :math:`φ_o - 180°` instead of :math:`N` lookups.  Equal to
+        ``einsum("cmn,cn->cm", btdf(...), w)`` to rounding (an azimuth exactly on a bin edge may
+        fall in the other bin)."""
+        w = np.asarray(weights, float)
+        C, N = w.shape
+        phi_o = np.asarray(phi_o_rad, float)
+        M = phi_o.shape[1]
+        out = np.zeros((C, M))
+        if N == 0 or M == 0:
+            return out
+        th_i = np.rad2deg(np.arccos(np.clip(np.asarray(cos_i, float), 0.0, 1.0)))          # (C, N)
+        th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))          # (C, M)
+        K, nt, npf = self.btdf_table.shape
+        n_arcs = 2 * npf
+        k = np.clip(np.searchsorted(THETA_I_DEG, th_i, side="right") - 1, 0, len(THETA_I_DEG) - 2)
+        t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
+        jo = np.clip((th_o / BIN_THETA_DEG).astype(int), 0, nt - 1)                        # (C, M)
+        phi_i = np.asarray(phi_i_rad, float)
+        # arc a (from φ_o − 180° + 10a°) holds |Δφ| bin 17 − a below 18 arcs, a − 18 from there
+        arc_bin = np.r_[np.arange(npf - 1, -1, -1), np.arange(npf)]
+        # arcs' start: φ_o − π taken into [−π, π), the sorted azimuths repeated one turn up
+        s0 = np.where(phi_o - np.pi < -np.pi, phi_o + np.pi, phi_o - np.pi)                # (C, M)
+        edges = s0[:, :, None] + np.arange(n_arcs + 1) * (2.0 * np.pi / n_arcs)             # (C, M, 37)
+        edges[:, :, -1] = s0 + 2.0 * np.pi
+
+        def work(c0, c1):
+            for c in range(c0, c1):
+                kc = k[c]
+                k0, k1 = int(kc.min()), int(kc.max()) + 1
+                order = np.argsort(phi_i[c], kind="stable")
+                W = np.zeros((N, k1 - k0 + 1))
+                W[np.arange(N), kc[order] - k0] = ((1.0 - t[c]) * w[c])[order]
+                W[np.arange(N), kc[order] + 1 - k0] += (t[c] * w[c])[order]
+                ph = phi_i[c][order]
+                S = np.zeros((2 * N + 1, W.shape[1]))
+                np.cumsum(np.concatenate([W, W]), axis=0, out=S[1:])
+                ph2 = np.r_[ph, ph + 2.0 * np.pi]
+                tab = self.btdf_table[k0:k1 + 1]
+                step = max(1, BTDF_SUM_BLOCK_ELEMENTS // (n_arcs * W.shape[1]))
+                for a in range(0, M, step):
+                    b = min(M, a + step)
+                    pos = np.searchsorted(ph2, edges[c, a:b], side="left")                  # (m, 37)
+                    arcs = S[pos[:, 1:]] - S[pos[:, :-1]]                                   # (m, 36, Kc)
+                    f = tab[:, jo[c, a:b]][:, :, arc_bin]                                   # (Kc, m, 36)
+                    out[c, a:b] = np.einsum("mak,kma->m", arcs, f, optimize=True)
+
+        # cells on the worker threads (numpy releases the GIL)
+        for_chunks(work, C, max(1, -(-C // worker_count())))
+        return out
 
 
 def _shape():

@@ -96,7 +96,13 @@ def test_the_directional_source_reduces_to_a_lambertian_one(ir, monkeypatch):
         return np.broadcast_to(plates.opal_entry_relative(cos_i, n) * plates.opal_exit_shape(cos_o, n)
                                * T_ref / np.pi, shape)
 
+    def lambertian_sum(self, cos_i, phi_i, cos_o, phi_o, w):
+        # what the source sums: Σ_n f(θ_i,n, θ_o,m, Δφ) w_n (RoughSlab.btdf_sum's definition)
+        f = lambertian(self, cos_i[:, None, :], cos_o[:, :, None], phi_o[:, :, None] - phi_i[:, None, :])
+        return np.einsum("cmn,cn->cm", f, w)
+
     monkeypatch.setattr(RoughSlab, "btdf", lambertian)
+    monkeypatch.setattr(RoughSlab, "btdf_sum", lambertian_sum)
     P = np.array([[0.0, 0.0, 0.0], [0.0, -250.0, 0.0], [400.0, 250.0, 0.0]])
     a = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered"}}).illuminance_lx(P)
     b = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "regular",

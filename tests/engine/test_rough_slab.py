@@ -149,6 +149,25 @@ def test_btdf_is_reciprocal():
     assert a == pytest.approx(b, rel=0.08), (a, b)
 
 
+
+def test_btdf_sum_is_the_weighted_sum_of_the_btdf():
+    # the radiance kernel of a rough plate's cells (diffuser's directional source) against its
+    # definition, Σ_n f_T(θ_i,n, θ_o,m, φ_o,m − φ_i,n) w_n from the table lookup itself: grazing,
+    # normal and node incidences, azimuths across ±π
+    s = rs.rough_slab(0.2 ** 2, 1.5)
+    rng = np.random.default_rng(7)
+    C, M, N = 5, 37, 240
+    cos_i = rng.uniform(0.0, 1.0, (C, N))
+    cos_i[:, :4] = [0.0, 1.0, np.cos(np.deg2rad(30.0)), 1e-4]
+    phi_i = rng.uniform(-np.pi, np.pi, (C, N))
+    cos_o = rng.uniform(0.0, 1.0, (C, M))
+    phi_o = rng.uniform(-np.pi, np.pi, (C, M))
+    w = rng.uniform(0.0, 2.0, (C, N))
+    want = np.einsum("cmn,cn->cm", s.btdf(cos_i[:, None, :], cos_o[:, :, None],
+                                           phi_o[:, :, None] - phi_i[:, None, :]), w)
+    np.testing.assert_allclose(s.btdf_sum(cos_i, phi_i, cos_o, phi_o, w), want, rtol=1e-12, atol=0)
+
+
 def test_absorption_scales_transmitted_light_by_a_squared():
     s = rs.rough_slab(0.09, IOR, photons=20_000)
     a = rs.per_refraction_factor(0.85, IOR)

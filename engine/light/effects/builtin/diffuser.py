@@ -32,9 +32,6 @@ from lbscene.engine.light.plates import (OpalEntryWeight, diffuser_fraction, dif
 __all__ = ["DiffuserEffect"]
 
 
-#: elements of one block of the rough plate's BTDF table (cells × directions × emitter points):
-#: about 128 MB of float64 at a time
-RADIANCE_BLOCK_ELEMENTS = 16_000_000
 #: rough plate radiances (per unit 1 − f_d) kept per forward-model cache: a fit varying only the
 #: plate's diffuse fraction or transmittance asks for the same few sets of directions again
 ROUGH_RADIANCE_MEMO = 8
@@ -174,16 +171,10 @@ class DiffuserEffect(PhysicalEffect):
             cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
             phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
             out = np.zeros(dirs.shape[:2] + (len(descr),))
-            M = dirs.shape[1]
             for j in range(len(descr)):
-                # the BTDF table (C, m, n) in blocks of directions: bounded memory however many
-                # receivers (a radiosity's patch points) look at the plate
-                step = max(1, RADIANCE_BLOCK_ELEMENTS // max(1, C * E[j].shape[1]))
-                for a in range(0, M, step):
-                    b = min(M, a + step)
-                    f = slab.btdf(cos_i[j][:, None, :], cos_o[:, a:b, None],
-                                  phi_o[:, a:b, None] - phi_p[j][:, None, :])      # (C, m, n)
-                    out[:, a:b, j] = np.einsum("cmn,cn->cm", f, E[j])
+                # Σ_n f_T E over the cell's incoming light, in bounded blocks of directions
+                # however many receivers (a radiosity's patch points) look at the plate
+                out[:, :, j] = slab.btdf_sum(cos_i[j], phi_p[j], cos_o, phi_o, E[j])
             return out
 
         return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
