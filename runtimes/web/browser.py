@@ -129,6 +129,46 @@ def _wait(proc, reports, want, timeout_s):
     return None
 
 
+def _stop_chromium(proc) -> None:
+    """Stop Chromium and every process it started (its renderer, GPU and crash handlers run in
+    its process group, and may still write into the profile after the browser itself exits)."""
+    import signal
+
+    def group(sig):
+        try:
+            os.killpg(proc.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    group(signal.SIGTERM)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        pass
+    group(signal.SIGKILL)
+    proc.wait()
+
+
+@contextmanager
+def _profile_dir():
+    """A fresh Chromium profile folder, removed afterwards (retried while the last of
+    Chromium's processes let go of it)."""
+    d = tempfile.mkdtemp(prefix="lbscene-chromium-")
+    try:
+        yield d
+    finally:
+        for _ in range(50):
+            try:
+                shutil.rmtree(d)
+                break
+            except FileNotFoundError:
+                break
+            except OSError:
+                time.sleep(0.1)
+        else:
+            shutil.rmtree(d, ignore_errors=True)
+
+
 def run_viewer(folder: Path, *, size_px=(512, 384), bench: int = 10, timeout_s: float = 180.0,
                extra: dict | None = None, want: str = "frame", chromium: Path | None = None) -> BrowserReport:
     """Open the viewer in headless Chromium, let it render ``bench`` frames and return
@@ -139,12 +179,12 @@ def run_viewer(folder: Path, *, size_px=(512, 384), bench: int = 10, timeout_s: 
     w, h = size_px
     q = {"size": f"{w}x{h}", "bench": bench, "report": "/report", "shot": 1}
     q.update(extra or {})
-    with serve(Path(folder)) as (base, reports), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+    with serve(Path(folder)) as (base, reports), _profile_dir() as prof:
         url = f"{base}/index.html?{urlencode(q)}"
         t0 = time.monotonic()
         proc = subprocess.Popen([str(chromium), *chromium_flags(Path(prof), w, h),
                                  "--remote-debugging-port=0", url],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
         try:
             rep = _wait(proc, reports, want, timeout_s)
         finally:
@@ -152,8 +192,9 @@ def run_viewer(folder: Path, *, size_px=(512, 384), bench: int = 10, timeout_s: 
             try:
                 out = proc.communicate(timeout=10)[0]
             except subprocess.TimeoutExpired:
-                proc.kill()
-                out = proc.communicate()[0]
+                out = b""
+            _stop_chromium(proc)
+            out = out or proc.communicate()[0]
         wall = time.monotonic() - t0
     if rep is None:
         raise RuntimeError(f"no report from the viewer within {timeout_s} s; chromium said:\n"
@@ -182,12 +223,17 @@ def screenshot(folder: Path, out_png: Path, *, size_px=(512, 384), extra: dict |
     q = {"size": f"{w}x{h}", "shot": 1}
     q.update(extra or {})
     out_png = Path(out_png).resolve()
-    with serve(Path(folder)) as (base, _), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+    with serve(Path(folder)) as (base, _), _profile_dir() as prof:
         cmd = [str(chromium), *chromium_flags(Path(prof), w, h), f"--screenshot={out_png}",
                "--virtual-time-budget=30000", f"{base}/index.html?{urlencode(q)}"]
-        res = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout_s)
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            out = proc.communicate(timeout=timeout_s)[0]
+        except subprocess.TimeoutExpired:
+            out = b""
+        _stop_chromium(proc)
     if not out_png.is_file():
-        raise RuntimeError("chromium wrote no screenshot:\n" + res.stdout.decode(errors="replace")[-3000:])
+        raise RuntimeError("chromium wrote no screenshot:\n" + out.decode(errors="replace")[-3000:])
     return out_png
 
 
@@ -316,11 +362,11 @@ def open_page(folder: Path, *, size_px=(1024, 768), query: dict | None = None, t
         os.dup2(r, 3)
         os.dup2(w, 4)
 
-    with serve(Path(folder)) as (base, _), tempfile.TemporaryDirectory(prefix="lbscene-chromium-") as prof:
+    with serve(Path(folder)) as (base, _), _profile_dir() as prof:
         proc = subprocess.Popen([str(chromium), *chromium_flags(Path(prof), w, h), "--remote-debugging-pipe",
                                  "about:blank"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                close_fds=False, preexec_fn=child_fds)
+                                close_fds=False, preexec_fn=child_fds, start_new_session=True)
         os.close(to_r)
         os.close(from_w)
         page = Page(proc, to_w, from_r, timeout_s)
@@ -339,12 +385,7 @@ def open_page(folder: Path, *, size_px=(1024, 768), query: dict | None = None, t
                           + (ready or "document.body && document.body.dataset.ready === '1'"))
             yield page
         finally:
-            proc.terminate()
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+            _stop_chromium(proc)
             os.close(to_w)
             os.close(from_r)
 
