@@ -229,6 +229,24 @@ def _orient(xf, origin, x_axis, z_hint) -> None:
     xf.MakeMatrixXform().Set(m)
 
 
+def _preview_surface(stage, path: str, rgb, roughness: float, metallic: float, *, define: bool) -> None:
+    """A UsdPreviewSurface material at ``path`` (``define``), or only its colour authored over it
+    (inside a variant of the ``lighting`` variant set)."""
+    from pxr import Sdf, UsdShade
+
+    if not define:
+        stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
+            "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+        return
+    material = UsdShade.Material.Define(stage, path)
+    shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(roughness)
+    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(metallic)
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+
+
 def _define_materials(stage, ir: SceneIR, light_1nm, *, define: bool) -> None:
     """UsdPreviewSurface materials of the booth's surfaces and the diffuser, coloured for a light.
 
@@ -239,35 +257,15 @@ def _define_materials(stage, ir: SceneIR, light_1nm, *, define: bool) -> None:
     for mat in ir.materials.values():
         path = f"/Booth/Materials/{_prim_name(mat.id)}"
         rgb = Gf.Vec3f(*adapted_linear_srgb(mat.reflectance.array_1nm, light_1nm))
-        if define:
-            material = UsdShade.Material.Define(stage, path)
-            shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
-            shader.CreateIdAttr("UsdPreviewSurface")
-            # matte unless the material declares gloss (≥ 10 GU: a visible sheen)
-            rough = 1.0 if mat.gloss_GU < 10 else float(np.clip(1.0 - mat.gloss_GU / 100.0, 0.1, 0.9))
-            shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(rough)
-            shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
-            shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
-            material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-        else:
-            stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
-                "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+        # matte unless the material declares gloss (≥ 10 GU: a visible sheen)
+        rough = 1.0 if mat.gloss_GU < 10 else float(np.clip(1.0 - mat.gloss_GU / 100.0, 0.1, 0.9))
+        _preview_surface(stage, path, rgb, rough, 0.0, define=define)
     for r in ir.reflectors.values():
         # a mirror: metallic, smooth, its colour the reflectance's (UsdPreviewSurface takes a
         # metal's specular colour from diffuseColor)
         path = f"/Booth/Materials/{_prim_name('reflector_' + r.id)}"
         rgb = Gf.Vec3f(*adapted_linear_srgb(np.clip(r.reflectance.array_1nm, 0, 1), light_1nm))
-        if define:
-            material = UsdShade.Material.Define(stage, path)
-            shader = UsdShade.Shader.Define(stage, f"{path}/PreviewSurface")
-            shader.CreateIdAttr("UsdPreviewSurface")
-            shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.0)
-            shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(1.0)
-            shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
-            material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-        else:
-            stage.OverridePrim(f"{path}/PreviewSurface").CreateAttribute(
-                "inputs:diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
+        _preview_surface(stage, path, rgb, 0.0, 1.0, define=define)
     if ir.diffuser is not None:
         d = ir.diffuser
         path = "/Booth/Materials/Diffuser"
