@@ -56,7 +56,7 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["cache_dir", "cached_array", "max_bytes", "FORMAT", "INDEX_NAME", "array_key", "tables_dir",
-           "recording_tables", "table_entry_name", "peek_array"]
+           "recording_tables", "table_entry_name", "peek_array", "load_entry", "store_entry"]
 
 #: bump when a cached computation changes its result for the same inputs
 FORMAT = "lbscene-geometry-1"
@@ -436,3 +436,30 @@ def peek_array(kind: str, arrays: tuple, params: tuple, shape: tuple | None = No
         return None
     out = _load(root / kind / f"{_key(kind, arrays, params)}.npy", shape, max_bytes())
     return None if out is None else out.astype(np.float64, copy=False)
+
+
+def load_entry(kind: str, arrays: tuple, params: tuple) -> np.ndarray | None:
+    """The cache's entry for ``kind``, ``arrays`` and ``params`` (the key of :func:`cached_array`),
+    as stored, or None (none, caching off, or not a sound entry).  For results that are not one
+    array computed in one call (a diagnosis, stored as bytes): :func:`store_entry` writes them."""
+    root = cache_dir()
+    if root is None or not _KIND_RE.match(kind):
+        return None
+    return _load(root / kind / f"{_key(kind, arrays, params)}.npy", None, max_bytes())
+
+
+def store_entry(kind: str, arrays: tuple, params: tuple, out: np.ndarray) -> None:
+    """Keep ``out`` (a numeric array) as the entry :func:`load_entry` reads, with the rules of
+    :func:`cached_array` (only the cache's own files replaced, the size bound kept); an entry
+    larger than the bound, or a cache that cannot be written, is not kept."""
+    root = cache_dir()
+    if root is None or not _KIND_RE.match(kind):
+        return
+    limit = max_bytes()
+    out = np.asarray(out)
+    if out.dtype.kind not in "fiub" or out.nbytes > limit:
+        return
+    try:
+        _store(root, kind, _key(kind, arrays, params), out, limit)
+    except (OSError, ValueError):
+        pass

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .diagnose import Diagnosis, NoiseModel, diagnose, noise_model
+from .diagnosis_cache import cached_diagnosis
 from .fit import FitProblem, FitResult, resolve_free_parameters
 from .measurements import Measurements, check_against_prediction, load_measurements
 
@@ -202,7 +203,8 @@ def run_compare(measurements, *, booth=None, fit: bool = True, do_diagnose: bool
                         outliers_excluded=bool(outliers) and not keep_outliers)
     if do_diagnose:
         t2 = time.perf_counter()
-        res.diagnosis = diagnose(meas, prob, progress=progress, cache=cache)
+        # kept on disk: the same question in another format, or `plan` after `compare`, reads it
+        res.diagnosis = cached_diagnosis(meas, prob, lambda: diagnose(meas, prob, progress=progress, cache=cache))
         t["diagnose"] = time.perf_counter() - t2
         if do_plan is None:
             do_plan = res.diagnosis.verdict.kind == "ambiguous"
