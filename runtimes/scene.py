@@ -405,6 +405,59 @@ def noise_texture(mask: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- builder
 
+class _ViewFrame:
+    """A view's platform rotation: ``R`` about ``origin``; whether the luminaire turns with it."""
+
+    def __init__(self, rotation: dict, lamps_rotate: bool):
+        self.R = rotation_matrix(rotation["axis"], rotation["angle_deg"])
+        self.origin = np.asarray(rotation["origin_mm"], float)
+        self.lamps_rotate = bool(lamps_rotate)
+
+    def to_world(self, p, n, mounted: bool):
+        """Rest positions and normals placed for the view (parts on the platform turn)."""
+        if not mounted:
+            return p, n
+        return (p - self.origin) @ self.R.T + self.origin, n @ self.R.T
+
+    def to_light_frame(self, p_rest, n_rest, mounted: bool):
+        """Receiver positions in the frame the forward model's lamps are in."""
+        if self.lamps_rotate:
+            if mounted:
+                return p_rest, n_rest
+            return (p_rest - self.origin) @ self.R + self.origin, n_rest @ self.R     # R⁻¹ = Rᵀ
+        return self.to_world(p_rest, n_rest, mounted)
+
+
+def _emitter_texture(ems: list, frame: _ViewFrame, xyz_weights: np.ndarray, grid):
+    """The emitters placed for the view as the texture sample.frag reads, with the ``#define`` s
+    of the kinds present and of whether any profile varies."""
+    et = np.zeros((max(len(ems), 1), EMITTER_TEXELS, 4), np.float32)
+    kinds = {"sphere": 0.0, "tube": 1.0, "panel": 2.0}
+    R, o = frame.R, frame.origin
+    for i, e in enumerate(ems):
+        c = np.asarray(e["centre_mm"], float)
+        ax, aim, wax = (np.asarray(e[k], float) for k in ("axis", "aim", "width_axis"))
+        if e["rotates_with_platform"]:
+            c, ax, aim, wax = (c - o) @ R.T + o, ax @ R.T, aim @ R.T, wax @ R.T
+        et[i, 0] = (*c, kinds[e["kind"]])
+        et[i, 1] = (*ax, e["half_length_mm"])
+        et[i, 2] = (*aim, e["half_width_mm"])
+        et[i, 3] = (*wax, 0.0)
+        b = np.zeros(16)
+        b[:grid.count] = e["intensity_bands_W_sr_nm"]
+        et[i, 4:8] = b.reshape(4, 4)
+        prof = np.asarray(e["profile"], float)
+        et[i, 8:8 + PROFILE_SAMPLES // 4] = prof.reshape(-1, 4)
+        # the band intensities in XYZ (the realtime schedule sums the highlights in XYZ)
+        et[i, 8 + PROFILE_SAMPLES // 4, :3] = xyz_weights.T @ b
+    kind_bits = {"sphere": 1, "tube": 2, "panel": 4}
+    emitter_kinds = 0
+    for e in ems:
+        emitter_kinds |= kind_bits[e["kind"]]
+    emitter_profiles = int(any(np.any(np.asarray(e["profile"], np.float32) != 1.0) for e in ems))
+    return et, emitter_kinds, emitter_profiles
+
+
 class SceneBuilder:
     """Render-time inputs of a graph for one IR, sample and display.
 
@@ -547,75 +600,21 @@ class SceneBuilder:
         raise KeyError(name)
 
     def _build_view(self, name: str) -> ViewInputs:
-        from .colour_bridge import project_reflectance, radiance_xyz_weights
-
         ir, grid = self.ir, self.ir.grid
         vs = self._view_spec(name)
-        rot = vs["rotation"]
-        R = rotation_matrix(rot["axis"], rot["angle_deg"])
-        o = np.asarray(rot["origin_mm"], float)
-        lamps_rotate = self.graph["scene"]["platform"]["luminaire_turns_with_platform"]
-        placement = {k: m["placement"] for k, m in self.graph["resources"]["meshes"].items()}
-        geo = self._rest_geometry()
-
-        def to_world(p, n, mounted):
-            if not mounted:
-                return p, n
-            return (p - o) @ R.T + o, n @ R.T
-
-        def to_light_frame(p_rest, n_rest, mounted):
-            """Receiver positions in the frame the forward model's lamps are in."""
-            if lamps_rotate:
-                if mounted:
-                    return p_rest, n_rest
-                return (p_rest - o) @ R + o, n_rest @ R     # R⁻¹ = Rᵀ
-            return to_world(p_rest, n_rest, mounted)
-
-        meshes = {}
-        for mname, (p, n, uv, mat, tris) in geo.items():
-            mounted = placement[mname] == "platform"
-            pw, nw = to_world(p, n, mounted)
-            if len(p):
-                pl, nl = to_light_frame(p, n, mounted)
-                # the same receivers in the light's frame give the same light: parts that turn
-                # with a platform-mounted luminaire, or fixed parts under fixed lamps, are
-                # evaluated once for all views
-                key = (mname, hashlib.sha256(np.ascontiguousarray(pl).tobytes()
-                                             + np.ascontiguousarray(nl).tobytes()).hexdigest())
-                if key not in self._irradiance_memo:
-                    self._irradiance_memo[key] = _vertex_irradiance_bands(ir, self.lighting, pl, nl,
-                                                                          self.indirect_cell_mm)
-                irr = self._irradiance_memo[key].copy()
-            else:
-                irr = np.zeros((0, grid.count))
-            meshes[mname] = [pw, nw, uv, mat, irr, tris]
+        frame = _ViewFrame(vs["rotation"], self.graph["scene"]["platform"]["luminaire_turns_with_platform"])
+        meshes = self._view_meshes(frame)
 
         # the light at the sample centre (1 nm): weights, projection, exposure
         sp = self.graph["scene"]["sample_placement"]
         c_rest = np.asarray(sp["centre_mm"], float) + np.asarray(sp["normal"], float) * sp["lift_mm"]
         n_rest = np.asarray(sp["normal"], float)
-        c_world, n_world = to_world(c_rest[None], n_rest[None], True)
-        c_light, n_light = to_light_frame(c_rest[None], n_rest[None], True)
+        c_world, n_world = frame.to_world(c_rest[None], n_rest[None], True)
+        c_light, n_light = frame.to_light_frame(c_rest[None], n_rest[None], True)
         e_1nm = _irradiance_1nm(ir, self.lighting, c_light[0], n_light[0])
         info: dict[str, Any] = {"diffuse": self.diffuse}
         if self.diffuse == "baked":
-            e_bake = self.bake.sample_irradiance_bands(name, n_world[0])
-            e_ana = grid.integrate(e_1nm)
-            ratio = np.where(e_ana > 0, e_bake / np.where(e_ana > 0, e_ana, 1.0), 0.0)
-            meshes["sample"][4] = meshes["sample"][4] * ratio[None, :]
-            # keep the 1 nm shape inside each band, take the level of each band from the bake
-            from .colour_bridge import band_membership
-
-            memb = band_membership(grid.first_centre_nm, grid.width_nm, grid.count)
-            e_1nm = e_1nm * (ratio @ memb)
-            floor = self.bake.floor_irradiance
-            if floor is not None and "booth" in meshes:
-                pw, nw = meshes["booth"][0], meshes["booth"][1]
-                on_floor = (np.abs(pw[:, 2]) < 1e-6) & (nw[:, 2] > 0.99)
-                vals, inside = floor.lookup(pw[on_floor])
-                sel = np.nonzero(on_floor)[0][inside]
-                meshes["booth"][4][sel] = vals[inside]
-            info["bake"] = self.bake.describe(name)
+            e_1nm = self._apply_bake(name, meshes, e_1nm, n_world[0], info)
 
         packed = {}
         for mname, (pw, nw, uv, mat, irr, tris) in meshes.items():
@@ -625,68 +624,21 @@ class SceneBuilder:
             packed[mname] = (v, np.ascontiguousarray(tris, dtype=np.uint32).ravel())
 
         # spectral → XYZ weights for the light at the sample
+        from .colour_bridge import radiance_xyz_weights
+
         w = np.zeros((16, 3))
         w[:grid.count] = radiance_xyz_weights(e_1nm, grid)
         xyz_weights = np.ascontiguousarray(w.reshape(4, 4, 3), dtype=np.float32).ravel()
-
-        # the sample's reflectance per measured geometry, projected for this light
-        sm = self.sample
-        ng = len(sm.geometries)
-        st = np.zeros((5, ng, 4), np.float32)
-        for j, (asp, _, r1) in enumerate(sm.geometries):
-            b = np.zeros(16)
-            b[:grid.count] = project_reflectance(r1, e_1nm, grid)
-            st[:4, j, :] = b.reshape(4, 4)
-            st[4, j, 0] = asp
-
-        # emitters, placed for the view
         ems = self.graph["scene"]["emitters"]
-        et = np.zeros((max(len(ems), 1), EMITTER_TEXELS, 4), np.float32)
-        kinds = {"sphere": 0.0, "tube": 1.0, "panel": 2.0}
-        for i, e in enumerate(ems):
-            c = np.asarray(e["centre_mm"], float)
-            ax, aim, wax = (np.asarray(e[k], float) for k in ("axis", "aim", "width_axis"))
-            if e["rotates_with_platform"]:
-                c, ax, aim, wax = (c - o) @ R.T + o, ax @ R.T, aim @ R.T, wax @ R.T
-            et[i, 0] = (*c, kinds[e["kind"]])
-            et[i, 1] = (*ax, e["half_length_mm"])
-            et[i, 2] = (*aim, e["half_width_mm"])
-            et[i, 3] = (*wax, 0.0)
-            b = np.zeros(16)
-            b[:grid.count] = e["intensity_bands_W_sr_nm"]
-            et[i, 4:8] = b.reshape(4, 4)
-            prof = np.asarray(e["profile"], float)
-            et[i, 8:8 + PROFILE_SAMPLES // 4] = prof.reshape(-1, 4)
-            # the band intensities in XYZ (the realtime schedule sums the highlights in XYZ)
-            et[i, 8 + PROFILE_SAMPLES // 4, :3] = w.T @ b
-        # the kinds present and whether any profile varies: #defines of sample.frag
-        kind_bits = {"sphere": 1, "tube": 2, "panel": 4}
-        emitter_kinds = 0
-        for e in ems:
-            emitter_kinds |= kind_bits[e["kind"]]
-        emitter_profiles = int(any(np.any(np.asarray(e["profile"], np.float32) != 1.0) for e in ems))
+        et, emitter_kinds, emitter_profiles = _emitter_texture(ems, frame, w, grid)
 
         # the illumination centre of the geometry (lamps' luminous centre), placed for the view
         illum = self._illumination_centre()
-        if lamps_rotate:
-            illum = (illum - o) @ R.T + o
+        if frame.lamps_rotate:
+            illum = (illum - frame.origin) @ frame.R.T + frame.origin
 
-        # exposure and display
-        from lbscene.engine.spectra.evaluate import cmfs_1nm
-
-        # a perfect white diffuser at the sample: XYZ (cd/m²) of the lighting's white
-        white_xyz = 683.0 / np.pi * (e_1nm @ cmfs_1nm())
-        y_white = float(white_xyz[1])
-        d = self.display
-        from lbscene.engine.colour.adaptation import adaptation_matrix
-
-        adapt = (adaptation_matrix(white_xyz, d.adapted_white_xyz, self.adaptation)
-                 if y_white > 0 else np.eye(3))
-        if self.exposure == "absolute":
-            k = 1.0
-        else:
-            k = self.white_fraction * d.white_Y_cd_m2 / y_white if y_white > 0 else 1.0
-
+        white_xyz, y_white, adapt, k = self._exposure(e_1nm)
+        d, sm = self.display, self.sample
         values = {
             "view.identity": _gl(np.eye(4)),
             "sample.model": _gl(np.eye(4)),
@@ -696,7 +648,7 @@ class SceneBuilder:
             "view.emitter_kinds": emitter_kinds,
             "view.emitter_profiles": emitter_profiles,
             "view.xyz_weights": xyz_weights,
-            "sample.geometry_count": ng,
+            "sample.geometry_count": len(sm.geometries),
             "sample.roughness": float(sm.roughness),
             "sample.specular_weight": float(min(sm.gloss_GU, 200.0) / 100.0),
             "sample.f0": float(COAT_F0),
@@ -714,29 +666,9 @@ class SceneBuilder:
             "dither.noise_size": int(self.static_textures()["blue_noise"].shape[0]),
             "dither.amplitude": 1.0 if self.dither else 0.0,
         }
-        # the effect coating (or the neutral values every sample draw binds)
-        from .coating import coating_inputs, flat_coating_values
+        values.update(self._coating_values(vs, frame, e_1nm, c_world[0], n_world[0], illum, ems, info))
+        from lbscene.engine.spectra.evaluate import cmfs_1nm
 
-        appearance = self.coating_appearance()
-        if appearance is None:
-            coat_values = flat_coating_values(sm.size_mm)
-        else:
-            eye = np.asarray(self.camera.position_mm or vs["camera"]["position_mm"], float)
-            # the geometry's light and the eye in the sample's frame (its normal n_world; the
-            # sample's u axis turns with the platform), for the flakes' visible share
-            n_w = n_world[0] / np.linalg.norm(n_world[0])
-            u_w = np.asarray(sp.get("u_axis", [1.0, 0.0, 0.0]), float) @ R.T
-            u_w = u_w - n_w * (u_w @ n_w)
-            u_w /= np.linalg.norm(u_w)
-            frame = np.stack([u_w, np.cross(n_w, u_w), n_w])
-            light_dir = frame @ ((illum - c_world[0]) / np.linalg.norm(illum - c_world[0]))
-            view_dir = frame @ ((eye - c_world[0]) / np.linalg.norm(eye - c_world[0]))
-            coat_values, coat_info = coating_inputs(
-                appearance, sm, e_1nm, grid, float(np.linalg.norm(eye - c_world[0])),
-                self.camera.vertical_fov_deg, light_dir, view_dir,
-                [e["intensity_bands_W_sr_nm"] for e in ems], u_w)
-            info["coating"] = coat_info
-        values.update(coat_values)
         info.update({"realised": vs["realised"], "geometry": vs["geometry"],
                      "platform_rotation_deg": vs["platform_rotation_deg"],
                      "sample_illuminance_lx": float(683.0 * e_1nm @ cmfs_1nm()[:, 1]),
@@ -746,9 +678,116 @@ class SceneBuilder:
                                                  if y_white > 0 else None),
                                     "display_white_xy": [float(v) for v in d.adapted_white_xyz[:2]
                                                          / d.adapted_white_xyz.sum()]}})
-        return ViewInputs(name=name, meshes=packed, textures={"emitters": et, "sample_reflectance": st},
+        return ViewInputs(name=name, meshes=packed,
+                          textures={"emitters": et, "sample_reflectance": self._sample_reflectance(e_1nm)},
                           values=values, sample_irradiance_1nm=e_1nm, sample_centre_mm=c_world[0],
                           sample_normal=n_world[0], info=info)
+
+    def _view_meshes(self, frame: "_ViewFrame") -> dict[str, list]:
+        """Every mesh placed for the view, ``[positions, normals, uv, material, band irradiance,
+        triangles]``, its light computed in the frame of the lamps."""
+        ir, grid = self.ir, self.ir.grid
+        placement = {k: m["placement"] for k, m in self.graph["resources"]["meshes"].items()}
+        meshes = {}
+        for mname, (p, n, uv, mat, tris) in self._rest_geometry().items():
+            mounted = placement[mname] == "platform"
+            pw, nw = frame.to_world(p, n, mounted)
+            if len(p):
+                pl, nl = frame.to_light_frame(p, n, mounted)
+                # the same receivers in the light's frame give the same light: parts that turn
+                # with a platform-mounted luminaire, or fixed parts under fixed lamps, are
+                # evaluated once for all views
+                key = (mname, hashlib.sha256(np.ascontiguousarray(pl).tobytes()
+                                             + np.ascontiguousarray(nl).tobytes()).hexdigest())
+                if key not in self._irradiance_memo:
+                    self._irradiance_memo[key] = _vertex_irradiance_bands(ir, self.lighting, pl, nl,
+                                                                          self.indirect_cell_mm)
+                irr = self._irradiance_memo[key].copy()
+            else:
+                irr = np.zeros((0, grid.count))
+            meshes[mname] = [pw, nw, uv, mat, irr, tris]
+        return meshes
+
+    def _apply_bake(self, name: str, meshes: dict, e_1nm: np.ndarray, n_sample, info: dict) -> np.ndarray:
+        """The baked levels in place of the analytic ones: the sample's bands scaled to the bake's,
+        the floor's vertices given the baked floor; returns the sample's 1 nm irradiance with each
+        band's level from the bake (its shape inside the band kept)."""
+        from .colour_bridge import band_membership
+
+        grid = self.ir.grid
+        e_bake = self.bake.sample_irradiance_bands(name, n_sample)
+        e_ana = grid.integrate(e_1nm)
+        ratio = np.where(e_ana > 0, e_bake / np.where(e_ana > 0, e_ana, 1.0), 0.0)
+        meshes["sample"][4] = meshes["sample"][4] * ratio[None, :]
+        memb = band_membership(grid.first_centre_nm, grid.width_nm, grid.count)
+        e_1nm = e_1nm * (ratio @ memb)
+        floor = self.bake.floor_irradiance
+        if floor is not None and "booth" in meshes:
+            pw, nw = meshes["booth"][0], meshes["booth"][1]
+            on_floor = (np.abs(pw[:, 2]) < 1e-6) & (nw[:, 2] > 0.99)
+            vals, inside = floor.lookup(pw[on_floor])
+            sel = np.nonzero(on_floor)[0][inside]
+            meshes["booth"][4][sel] = vals[inside]
+        info["bake"] = self.bake.describe(name)
+        return e_1nm
+
+    def _sample_reflectance(self, e_1nm: np.ndarray) -> np.ndarray:
+        """The sample's reflectance per measured geometry, projected for this light: (5, G, 4)
+        float32, four blocks of four bands and the aspecular angle."""
+        from .colour_bridge import project_reflectance
+
+        grid, sm = self.ir.grid, self.sample
+        st = np.zeros((5, len(sm.geometries), 4), np.float32)
+        for j, (asp, _, r1) in enumerate(sm.geometries):
+            b = np.zeros(16)
+            b[:grid.count] = project_reflectance(r1, e_1nm, grid)
+            st[:4, j, :] = b.reshape(4, 4)
+            st[4, j, 0] = asp
+        return st
+
+    def _exposure(self, e_1nm: np.ndarray):
+        """``(white XYZ, its Y, adaptation matrix, exposure)``: a perfect white diffuser at the
+        sample under this light (cd/m²), adapted to the display's white and exposed as declared."""
+        from lbscene.engine.colour.adaptation import adaptation_matrix
+        from lbscene.engine.spectra.evaluate import cmfs_1nm
+
+        white_xyz = 683.0 / np.pi * (e_1nm @ cmfs_1nm())
+        y_white = float(white_xyz[1])
+        d = self.display
+        adapt = (adaptation_matrix(white_xyz, d.adapted_white_xyz, self.adaptation)
+                 if y_white > 0 else np.eye(3))
+        if self.exposure == "absolute":
+            k = 1.0
+        else:
+            k = self.white_fraction * d.white_Y_cd_m2 / y_white if y_white > 0 else 1.0
+        return white_xyz, y_white, adapt, k
+
+    def _coating_values(self, vs: dict, frame: "_ViewFrame", e_1nm, c_sample, n_sample, illum, ems,
+                        info: dict) -> dict:
+        """The effect coating's values (or the neutral ones every sample draw binds); its
+        description goes to ``info["coating"]``."""
+        from .coating import coating_inputs, flat_coating_values
+
+        sm = self.sample
+        appearance = self.coating_appearance()
+        if appearance is None:
+            return flat_coating_values(sm.size_mm)
+        sp = self.graph["scene"]["sample_placement"]
+        eye = np.asarray(self.camera.position_mm or vs["camera"]["position_mm"], float)
+        # the geometry's light and the eye in the sample's frame (its normal n_sample; the
+        # sample's u axis turns with the platform), for the flakes' visible share
+        n_w = n_sample / np.linalg.norm(n_sample)
+        u_w = np.asarray(sp.get("u_axis", [1.0, 0.0, 0.0]), float) @ frame.R.T
+        u_w = u_w - n_w * (u_w @ n_w)
+        u_w /= np.linalg.norm(u_w)
+        basis = np.stack([u_w, np.cross(n_w, u_w), n_w])
+        light_dir = basis @ ((illum - c_sample) / np.linalg.norm(illum - c_sample))
+        view_dir = basis @ ((eye - c_sample) / np.linalg.norm(eye - c_sample))
+        coat_values, info["coating"] = coating_inputs(
+            appearance, sm, e_1nm, self.ir.grid, float(np.linalg.norm(eye - c_sample)),
+            self.camera.vertical_fov_deg, light_dir, view_dir,
+            [e["intensity_bands_W_sr_nm"] for e in ems], u_w)
+        return coat_values
 
     def coating_appearance(self):
         """The sample's :class:`~lbscene.engine.coatings.model.CoatingAppearance` (None without

@@ -681,6 +681,10 @@ class ForwardModel:
         terms = self.direct_terms(P, N, m, pair_factor=pair_factor)
         for src in self.secondary_sources():
             F = self.lambertian_gather(src.polys, src.normals, P, N, m)
+            for cls, p, fn in self._hooks("source_path_factors"):
+                f = fn(self.ctx, p, src.polys, P)
+                if f is not None:
+                    F = F * f
             if isinstance(src, DirectionalSource):
                 from .geometry import quad_centroids
 

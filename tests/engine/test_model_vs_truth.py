@@ -43,11 +43,22 @@ RT = _load_script()
 #: the truth's own noise must be small against the thresholds for a comparison to mean something
 MAX_TRUTH_NOISE_PERCENT = 0.3
 
+_APERTURE_DIFFUSER = (
+    "rough plate of GGX alpha 0.3 27 mm under two tubes, in a black cavity closed by an aperture plate: "
+    "RMS 2.3 % (a3) and 3.0 % (floor), the model low everywhere (mean -2.3 / -3.0 %).  The regime the "
+    "lobe's footprint picks (straight paths with T(theta)) keeps each path's direction where the wide "
+    "lobe turns light toward the plate's normal, as in rough-cavity-45's direct light (-2.4 %); "
+    "the plate's cells re-emitting through the BTDF (rough_transport: scattered, 25 mm cells, their "
+    "light occluded by the aperture) give the mean (-0.2 %) but an RMS of 1.8 %: +3 % between the "
+    "tubes (y 0), -2 % beyond them (y +-120 mm, the tubes at +-90 mm)")
+
 #: (scene, grid) the forward model does not meet yet: what physics it is missing, as measured
 #: (empty: every scene meets its threshold)
 KNOWN_GAPS: dict[tuple[str, str], str] = {
     ("rough-cavity-45", "a3"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
     ("rough-cavity-45", "floor"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
+    ("aperture-diffuser", "a3"): _APERTURE_DIFFUSER,
+    ("aperture-diffuser", "floor"): _APERTURE_DIFFUSER,
 }
 
 CASES = [(s, g) for s in RT.SCENES for g in RT.grids_of(s)]

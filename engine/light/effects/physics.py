@@ -28,6 +28,10 @@ Hooks (``ctx`` is a :class:`ForwardContext`, ``p`` the validated ``Params``):
     ``direct(points, normals, exclude)`` evaluates direct lamp light and
     ``direct.per_point(points, normals, exclude)`` the same light emitter
     point by emitter point, with its directions (:class:`PointLight`).
+``source_path_factors(ctx, p, polys, rx_points) -> (M, P) array | None``
+    Per (receiver, polygon of a secondary source) share of the polygon's light that reaches the
+    receiver: occluders between a diffuser plate and the room.  The factors of every enabled
+    effect multiply.
 ``receiver_response(ctx, p, cos_incidence) -> factor``
     Meter response relative to an ideal cosine receiver (only applied to
     illuminance-meter receivers, never to physical surfaces).
@@ -372,6 +376,10 @@ class EffectHooks(Protocol):
                           direct: Callable) -> list[LambertianSource | DirectionalSource]: ...
 
     @staticmethod
+    def source_path_factors(ctx: ForwardContext, p: Any, polys: np.ndarray,
+                            rx_points: np.ndarray) -> np.ndarray | None: ...
+
+    @staticmethod
     def receiver_response(ctx: ForwardContext, p: Any, cos_incidence: np.ndarray) -> np.ndarray: ...
 
     @staticmethod
@@ -382,7 +390,7 @@ class EffectHooks(Protocol):
 HOOKS: dict[str, int] = {
     name: len(inspect.signature(getattr(EffectHooks, name)).parameters)
     for name in ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources",
-                 "receiver_response", "global_transport")
+                 "source_path_factors", "receiver_response", "global_transport")
 }
 #: backends that consume effects: the analytic forward model, the Monte Carlo reference engine,
 #: Cycles bake jobs, the realtime render graph

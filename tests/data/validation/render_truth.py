@@ -52,7 +52,9 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
           "rough-cavity-45",
           # opal plates (faces matched to the air: the scattering layer alone)
-          "opal-black", "opal-grey")
+          "opal-black", "opal-grey", "opal-cavity-45",
+          # a diffuser inside a cavity closed by an aperture plate
+          "aperture-diffuser")
 #: the forward model's RMS deviation from the truth allowed per scene (percent, the truth's noise
 #: removed in quadrature): tests/engine/test_model_vs_truth.py and benchmarks/bench_truth.py
 THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "cavity-aperture": 1.5,
@@ -63,12 +65,11 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "mirror-prism": 1.0,
                       # plates
                       "rough-cavity-45": 1.0,
-                      "opal-black": 1.0, "opal-grey": 1.0}
+                      "opal-black": 1.0, "opal-grey": 1.0, "opal-cavity-45": 1.0,
+                      "aperture-diffuser": 1.0}
 #: scenes whose truth covers some grids only (the others: every grid of
-#: ``engine.truth.validation.GRIDS``); the volumetric opal plate costs 36 to 73 s of wall time per
-#: receiver at 0.28 % (``llvm_ad_spectral`` on a busy two-core machine), so the opal scenes have
-#: the A3 sheet only so far
-SCENE_GRIDS = {"opal-black": ("a3",), "opal-grey": ("a3",)}
+#: ``engine.truth.validation.GRIDS``)
+SCENE_GRIDS: dict[str, tuple[str, ...]] = {}
 LIGHTING = "L"
 SPP_PER_PASS = 65536
 TARGET_REL_ERROR = 0.0015

@@ -1,13 +1,19 @@
 """
-``aperture_occlusion``: occluders (aperture plates, cavity panels) block lamp→point paths.
+``aperture_occlusion``: occluders (aperture plates, cavity panels) block lamp→point paths, and
+the paths from a diffuser plate's cells to the room.
 
 Kind ``geometric``.  The occluders' rectangles with their openings are
 :func:`lbscene.engine.light.plates.occluder_rects`; the fitted ``opening_scale`` scales
-the openings.
+the openings.  A lamp's light is occluded segment by segment of the tube
+(:meth:`ForwardContext.fraction_hitting`); the light a diffuser plate re-emits (its diffuse part,
+a rough plate's scattered light) is occluded over :data:`SOURCE_SUBCELLS` ² points of each cell
+(``source_path_factors``): a plate in a cavity sends its light to the room only through the
+aperture below it.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from pydantic import Field
 
 from lbscene.engine.light.effects.physics import PathChannel, PhysicalEffect
@@ -15,7 +21,11 @@ from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import occluder_rects
 from lbscene.schemas.base import Identifier
 
-__all__ = ["ApertureOcclusionEffect"]
+__all__ = ["ApertureOcclusionEffect", "SOURCE_SUBCELLS"]
+
+#: points per side of a diffuser cell over which its light's occlusion is averaged: an aperture
+#: 20 mm under a plate spreads the shadow of a cell's edge over hundreds of millimetres of floor
+SOURCE_SUBCELLS = 6
 
 
 @register_effect
@@ -43,11 +53,40 @@ class ApertureOcclusionEffect(PhysicalEffect):
         return None
 
     @staticmethod
-    def path_factors(ctx, p, es, rx):
+    def _rects(ctx, p):
         key = ("occ", p.opening_scale, p.opening_scale_u, p.opening_scale_v, tuple(p.occluders or ()))
         rects = ctx.cache.get(key)
         if rects is None:
             rects = ctx.cache[key] = occluder_rects(ctx.ir, p)
+        return rects
+
+    @staticmethod
+    def source_path_factors(ctx, p, polys, rx):
+        from lbscene.engine.light.geometry import quad_subpoints, segment_hits_rectangle
+
+        # occluders that stop every lamp (a cavity's plate and panels): a plate's light leaves
+        # the cavity through them as the lamps' light does
+        rects = [rect for o, rect in ApertureOcclusionEffect._rects(ctx, p) if o.lamps is None]
+        if not rects:
+            return None
+
+        def compute():
+            pts, w = quad_subpoints(np.asarray(polys, float), SOURCE_SUBCELLS)
+            S, K, _ = pts.shape
+            flat = pts.reshape(-1, 3)
+            seen = np.ones((len(rx), S * K))
+            for rect in rects:
+                seen *= ~segment_hits_rectangle(flat, rx, rect)
+            return np.einsum("msk,sk->ms", seen.reshape(len(rx), S, K), w)
+
+        sig = [np.concatenate([np.ravel(r.centre), np.ravel(r.normal), np.ravel(r.u), np.ravel(r.half),
+                               np.ravel(r.hole_half if r.hole_half is not None else (-1.0, -1.0))])
+               for r in rects]
+        return ctx.memo("source-occ", (polys, rx, *sig), compute, limit=16)
+
+    @staticmethod
+    def path_factors(ctx, p, es, rx):
+        rects = ApertureOcclusionEffect._rects(ctx, p)
         blocked = None
         for o, rect in rects:
             if o.lamps is not None and es.lamp_id not in o.lamps:
