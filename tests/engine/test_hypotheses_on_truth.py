@@ -5,7 +5,8 @@ The truth is Mitsuba 3, committed as data beside the script that rendered it
 other sizes, lamp layouts and plate heights than the validation scenes, each with hardware the
 booth file handed to the diagnosis does not declare — a black luminaire cavity (its occluders
 deleted and the ceiling declared in the walls' grey), a ceiling darker than declared, walls
-lighter than declared, a rough plate (deleted), a plane mirror above each tube (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
+lighter than declared, a rough plate (deleted), an opal plate (deleted), a plane mirror above each
+tube (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
 1 % seeded meter noise is added and ``compare`` runs on the edited booth.
 
 Every case states the verdicts the data allow; the truth must be in the verdict (named, or one
@@ -111,6 +112,16 @@ CASES = [
     Case("rough-plate-floor-known", "rough-plate", "floor", _PLATE, True, "diffuser",
          ("missing:diffuser", "ambiguous:diffuser"), slow=True),
     Case("rough-plate-floor-fitted", "rough-plate", "floor", _PLATE, False, "diffuser",
+         ("missing:diffuser", "ambiguous:diffuser"), slow=True),
+    # an opal plate 70 mm under three tubes running front to back, in a 30 % grey box (deleted):
+    # the plate's type (opal or rough glass) is fitted too
+    Case("opal-plate-a3-known", "opal-plate", "a3", _PLATE, True, "diffuser",
+         ("missing:diffuser", "ambiguous:diffuser"), slow=True),
+    Case("opal-plate-a3-fitted", "opal-plate", "a3", _PLATE, False, "diffuser",
+         ("missing:diffuser", "ambiguous:diffuser", "none"), slow=True),
+    Case("opal-plate-floor-known", "opal-plate", "floor", _PLATE, True, "diffuser",
+         ("missing:diffuser", "ambiguous:diffuser"), slow=True),
+    Case("opal-plate-floor-fitted", "opal-plate", "floor", _PLATE, False, "diffuser",
          ("missing:diffuser", "ambiguous:diffuser"), slow=True),
     # a plane mirror above each tube, facing down (deleted, and the lamps' reference to it)
     # the booth with its mirrors declared is 0.7 % RMS off this truth (RMSE 1.22 % at 1 % noise,
