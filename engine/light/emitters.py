@@ -51,11 +51,11 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Callable
 
 import numpy as np
 
+from lbscene.engine.light.geometry import gauss_legendre
 from lbscene.engine.spectra.profiles import base_law, modulation, sphere_directions
 
 __all__ = [
@@ -69,12 +69,6 @@ __all__ = [
     "projected_area_m2",
     "unit_irradiance",
 ]
-
-
-@lru_cache(maxsize=64)
-def _gauss(n: int):
-    """Gauss–Legendre nodes and weights on [-1, 1] (cached: numpy solves an eigenproblem)."""
-    return np.polynomial.legendre.leggauss(n)
 
 
 def _unit(v) -> np.ndarray:
@@ -206,8 +200,8 @@ class PanelEmitter(Emitter):
         ratio = self.length_mm / max(self.width_mm, 1e-9)
         nu = max(1, int(round(np.sqrt(n * ratio))))
         nv = max(1, int(round(n / nu)))
-        xu, wu = _gauss(nu)
-        xv, wv = _gauss(nv)
+        xu, wu = gauss_legendre(nu)
+        xv, wv = gauss_legendre(nv)
         U, V = np.meshgrid(xu / 2, xv / 2, indexing="ij")
         W = np.outer(wu / 2, wv / 2).ravel()
         pts = (self.centre_mm + np.outer(U.ravel() * self.length_mm, self.axis)

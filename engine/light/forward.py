@@ -746,10 +746,11 @@ def _cylinder_arc(d, N, axis, radius_mm):
 
     ``d`` (M, K, 3) receiver minus slice centre (mm), ``N`` (M, 3) receiver normals.  Returns
     ``φ₀`` (M, K), the half-angle of the visible arc (``|φ| < arccos(r/h)``, h the receiver's
-    distance from the axis; 0 inside the tube), and an iterator over the 12 Gauss–Legendre
+    distance from the axis; 0 inside the tube), an iterator over the 12 Gauss–Legendre
     nodes φ = φ₀·t_k of ``(g_k · cos θ_s · max(0, cos θ_r) / ρ², cos θ_r)`` (1/mm², each
     (M, K)): θ_s from the surface normal at the node, θ_r at the receiver, ρ the distance
-    from the node.  :func:`_cylinder_slices` and :class:`_ArcMean` sum over it.
+    from the node, and ``(N·d, |d|²)`` (M, K).  :func:`_cylinder_slices` and :class:`_ArcMean`
+    sum over it.
     """
     t, g = _GAUSS_ARC
     a = np.asarray(axis, float)
@@ -773,7 +774,7 @@ def _cylinder_arc(d, N, axis, radius_mm):
             cos_r = np.clip((radius_mm * (c * Ne + s * Ne2) - Nd) / rho, 0.0, None)
             yield gk * cos_s * cos_r / rho2, cos_r
 
-    return phi0, nodes()
+    return phi0, nodes(), (Nd, d2)
 
 
 def _cylinder_slices(d, N, axis, radius_mm):
@@ -788,7 +789,7 @@ def _cylinder_slices(d, N, axis, radius_mm):
     h its distance from the axis), θ_s from the surface normal, ρ from the surface point.
     12-point Gauss–Legendre over the arc; far away G → sin θ_axis · cos θ_r / d².
     """
-    phi0, nodes = _cylinder_arc(d, N, axis, radius_mm)
+    phi0, nodes, _ = _cylinder_arc(d, N, axis, radius_mm)
     out = np.zeros(d.shape[:2])
     for f, _ in nodes:
         out += f
@@ -827,15 +828,14 @@ class _ArcMean:
     def __init__(self, d, N, axis, radius_mm):
         from math import factorial
 
-        phi0, nodes = _cylinder_arc(d, N, axis, radius_mm)
+        _, nodes, (Nd, d2) = _cylinder_arc(d, N, axis, radius_mm)
         nodes = list(nodes)
         den = sum(f for f, _ in nodes)
         lit = den > 0
         inv = np.where(lit, 1.0 / np.where(lit, den, 1.0), 0.0)
         mean = sum(f * c for f, c in nodes) * inv
         moments = [sum(f * (c - mean) ** n for f, c in nodes) * inv for n in (2, 3, 4)]
-        axis_cos = np.clip(-np.einsum("mkc,mc->mk", d, N)
-                           / np.sqrt(np.maximum(np.einsum("mkc,mkc->mk", d, d), 1e-12)), 0.0, None)
+        axis_cos = np.clip(-Nd / np.sqrt(np.maximum(d2, 1e-12)), 0.0, None)
         mean = np.clip(np.where(lit, mean, axis_cos), 0.0, 1.0)
         # each c̄'s interval of the table and its place in it; the series' coefficients
         x = mean * (ARC_WEIGHT_TABLE - 1)

@@ -31,10 +31,12 @@ True
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 __all__ = [
+    "gauss_legendre",
     "polygon_form_factor",
     "Patches",
     "mesh_patches",
@@ -64,6 +66,17 @@ __all__ = [
     "swept_pairs_near_body",
     "pairs_near_bodies",
 ]
+
+
+@lru_cache(maxsize=64)
+def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes and weights of order ``n`` on [-1, 1], computed once per order (numpy
+    solves an eigenproblem for them at every call: in a fit that re-evaluates a plate's laws at
+    every step, most of its time).  Read-only: every caller shares them."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x.flags.writeable = False
+    w.flags.writeable = False
+    return x, w
 
 _EPS = 1e-12
 
@@ -456,6 +469,13 @@ class Rectangle:
     @property
     def v(self) -> np.ndarray:
         return np.cross(self.normal, self.u)
+
+    @property
+    def key_arrays(self) -> tuple:
+        """What the rectangle is, as arrays (a memo key): centre, normal, u, half sizes and the
+        opening's half sizes (−1 without one)."""
+        hole = self.hole_half if self.hole_half is not None else (-1.0, -1.0)
+        return (self.centre, self.normal, self.u, self.half, hole)
 
 
 #: occluders are drawn this far (mm) along their normal by the renderers (the Cycles bake, the

@@ -71,7 +71,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .geometry import Rectangle
+from .geometry import Rectangle, gauss_legendre
 from .rough_slab import fresnel_slab_transmittance, rough_slab
 
 __all__ = [
@@ -106,17 +106,6 @@ __all__ = [
 
 
 # --------------------------------------------------------------------------- the diffuser plate
-
-@lru_cache(maxsize=8)
-def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre nodes and weights on [-1, 1], computed once per order (numpy solves an
-    eigenproblem for them at every call: in a fit that re-evaluated an opal plate's laws at every
-    step, most of the plate's time).  Read-only: every caller shares them."""
-    x, w = np.polynomial.legendre.leggauss(n)
-    x.flags.writeable = False
-    w.flags.writeable = False
-    return x, w
-
 
 def diffuser_rect(ir) -> Rectangle:
     """The booth's diffuser plate as a horizontal :class:`~lbscene.engine.light.geometry.Rectangle`."""
@@ -240,7 +229,7 @@ def plate_directional_relative(ir, cos_i) -> np.ndarray:
 
 def _hemispherical(f) -> float:
     """:math:`2\\int_0^1 f(μ)\\,μ\\,dμ` (Gauss–Legendre)."""
-    x, w = _gauss_legendre(64)
+    x, w = gauss_legendre(64)
     mu = 0.5 * (x + 1.0)
     return float(np.sum(w * f(mu) * mu))
 
@@ -291,7 +280,7 @@ def opal_layer_constant(ior: float) -> float:
 @lru_cache(maxsize=64)
 def _opal_layer_constant(n: float) -> float:
     """:func:`opal_layer_constant`, once per index (a fit evaluates the plate's laws at every step)."""
-    x, w = _gauss_legendre(256)
+    x, w = gauss_legendre(256)
     mu = 0.5 * (x + 1.0)
     w = 0.5 * w
     # inside the layer: the ray leaves at sin θ_o = n sin θ_i; beyond the critical angle all of it comes back
@@ -429,7 +418,7 @@ def opal_declared_reflectance(ir, transmittance) -> np.ndarray:
 def plate_hemispherical_reflectance(ir, transmittance) -> np.ndarray:
     """Reflectance of the plate for diffuse (Lambertian) light, :math:`2\\int_0^1 R(μ) μ\\,dμ`,
     per value of ``transmittance``."""
-    x, w = _gauss_legendre(64)
+    x, w = gauss_legendre(64)
     mu = 0.5 * (x + 1.0)
     R = plate_reflectance(ir, mu, transmittance)              # (64, B)
     return np.einsum("k,kb->b", w * mu, R.reshape(len(mu), -1)).reshape(np.shape(transmittance))

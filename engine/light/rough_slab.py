@@ -90,6 +90,7 @@ from pathlib import Path
 import numpy as np
 
 from lbscene.engine.files.parallel import for_chunks, worker_count
+from lbscene.engine.light.geometry import gauss_legendre
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
            "fresnel_slab_transmittance",
@@ -125,16 +126,6 @@ SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
 #: elements of one block of :meth:`RoughSlab.btdf_sum`'s (exit directions × arcs × θ_i nodes)
 #: arrays per cell: about 32 MB at a time however many receivers look at the plate
 BTDF_SUM_BLOCK_ELEMENTS = 4_000_000
-
-
-@lru_cache(maxsize=1)
-def _gauss_legendre_64() -> tuple[np.ndarray, np.ndarray]:
-    """64-point Gauss–Legendre nodes and weights on [-1, 1], once (numpy solves an eigenproblem
-    for them at every call); read-only."""
-    x, w = np.polynomial.legendre.leggauss(64)
-    x.flags.writeable = False
-    w.flags.writeable = False
-    return x, w
 
 
 def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
@@ -361,13 +352,13 @@ class RoughSlab:
     def hemispherical_transmittance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Transmittance of Lambertian light, :math:`T_h = 2\\int_0^1 a^2 T(μ) μ\\, dμ`
         (Gauss–Legendre in μ on the interpolated table)."""
-        x, w = _gauss_legendre_64()
+        x, w = gauss_legendre(64)
         mu = 0.5 * (x + 1.0)
         return np.asarray(absorption, float) ** 2 * float(np.sum(w * 0.5 * 2.0 * self.transmittance(mu) * mu))
 
     def hemispherical_reflectance(self, absorption: float | np.ndarray = 1.0) -> np.ndarray:
         """Reflectance of Lambertian light, :math:`2\\int_0^1 R(μ) μ\\, dμ`."""
-        x, w = _gauss_legendre_64()
+        x, w = gauss_legendre(64)
         mu = 0.5 * (x + 1.0)
         return np.asarray([float(np.sum(w * self.reflectance(mu, a) * mu))
                            for a in np.atleast_1d(absorption)]).reshape(np.shape(absorption))

@@ -227,8 +227,7 @@ class ForwardContext:
         from lbscene.engine.light.geometry import segment_fraction_hitting
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
-        hole = rect.hole_half if rect.hole_half is not None else (-1.0, -1.0)
-        key = (es.points_mm, half, rx, rect.centre, rect.normal, rect.u, rect.half, hole)
+        key = (es.points_mm, half, rx, *rect.key_arrays)
         # the tube's width only shifts a shadow edge noticeably when the rectangle is within a
         # few radii of it (apertures, slots); farther away its axis stands for it
         close = (es.line_axis is not None and es.line_radius_mm > 0 and

@@ -79,10 +79,8 @@ class ApertureOcclusionEffect(PhysicalEffect):
                 seen *= ~segment_hits_rectangle(flat, rx, rect)
             return np.einsum("msk,sk->ms", seen.reshape(len(rx), S, K), w)
 
-        sig = [np.concatenate([np.ravel(r.centre), np.ravel(r.normal), np.ravel(r.u), np.ravel(r.half),
-                               np.ravel(r.hole_half if r.hole_half is not None else (-1.0, -1.0))])
-               for r in rects]
-        return ctx.memo("source-occ", (polys, rx, *sig), compute, limit=16)
+        return ctx.memo("source-occ", (polys, rx, *(a for r in rects for a in r.key_arrays)), compute,
+                        limit=16)
 
     @staticmethod
     def path_factors(ctx, p, es, rx):
