@@ -41,6 +41,7 @@ __all__ = [
     "Patches",
     "mesh_patches",
     "quad_subpoints",
+    "lamp_surface_distance_mm",
     "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
@@ -954,6 +955,20 @@ def _paired_segments_hit_rectangle(a: np.ndarray, b: np.ndarray, rect: Rectangle
     if rect.hole_half is not None:
         inside &= ~((np.abs(pu) < rect.hole_half[0]) & (np.abs(pv) < rect.hole_half[1]))
     return ok & inside
+
+
+def lamp_surface_distance_mm(lamps, points: np.ndarray) -> np.ndarray:
+    """Distance from each point to the nearest of ``lamps``' surfaces (a tube's or bulb's; a
+    panel's axis segment, a point); at least 1 mm."""
+    d = np.full(len(points), np.inf)
+    for lp in lamps:
+        o = np.asarray(lp.position_mm, float)
+        ax = np.asarray(lp.axis, float)
+        half = lp.length_mm / 2 if lp.kind in ("tube", "panel") else 0.0
+        t = np.clip((points - o) @ ax, -half, half)
+        r = lp.radius_mm if lp.kind in ("tube", "bulb") else 0.0
+        d = np.minimum(d, np.maximum(np.linalg.norm(points - o - np.outer(t, ax), axis=1) - r, 1.0))
+    return d
 
 
 def lamp_body(lamp):

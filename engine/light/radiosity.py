@@ -67,7 +67,8 @@ import numpy as np
 from lbscene.engine.files.disk_cache import cached_array
 
 from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_convex_faces, hidden_from_apex,
-                       mesh_patches, mesh_triangles, pairs_near_bodies, plate_pieces, polygon_form_factor,
+                       lamp_surface_distance_mm, mesh_patches, mesh_triangles, pairs_near_bodies, plate_pieces,
+                       polygon_form_factor,
                        pyramids_clear_of, quad_areas, quad_centroids, quad_r2_points, quad_subpoints,
                        segments_blocked, segments_blocked_by_polygon, visibility_matrix)
 
@@ -141,20 +142,6 @@ def mesh_patch_size_mm(ir, patch_size_mm: float, declared_mm: float | None = Non
     return min(patch_size_mm, smallest / MESH_PATCHES_ACROSS)
 
 
-def _lamp_distance_mm(lamps, points: np.ndarray) -> np.ndarray:
-    """Distance from each point to the nearest of ``lamps``' surfaces (a tube's or bulb's; a
-    panel's axis segment, a point); at least 1 mm."""
-    d = np.full(len(points), np.inf)
-    for lp in lamps:
-        o = np.asarray(lp.position_mm, float)
-        ax = np.asarray(lp.axis, float)
-        half = lp.length_mm / 2 if lp.kind in ("tube", "panel") else 0.0
-        t = np.clip((points - o) @ ax, -half, half)
-        r = lp.radius_mm if lp.kind in ("tube", "bulb") else 0.0
-        d = np.minimum(d, np.maximum(np.linalg.norm(points - o - np.outer(t, ax), axis=1) - r, 1.0))
-    return d
-
-
 def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
                       min_size_mm: float | None = None, lamps=None,
                       min_body_mm: float | None = None) -> Patches:
@@ -187,10 +174,10 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
             break
         c = quad_centroids(P)
         diag = np.maximum(np.linalg.norm(P[:, 2] - P[:, 0], axis=1), np.linalg.norm(P[:, 3] - P[:, 1], axis=1))
-        dist = _lamp_distance_mm(lamps, c)
+        dist = lamp_surface_distance_mm(lamps, c)
         near = diag > ratio * dist
         # the floor: finer where a tube or a bulb is the nearest lamp
-        floor = np.where(_lamp_distance_mm(bodies, c) <= dist, min_body_mm, min_size_mm) if bodies \
+        floor = np.where(lamp_surface_distance_mm(bodies, c) <= dist, min_body_mm, min_size_mm) if bodies \
             else min_size_mm
         split = near & (diag > floor * np.sqrt(2) * 2)
         keep = ~split

@@ -49,14 +49,25 @@ _APERTURE_DIFFUSER = (
     "lobe's footprint picks (straight paths with T(theta)) keeps each path's direction where the wide "
     "lobe turns light toward the plate's normal, as in rough-cavity-45's direct light (-2.4 %); "
     "the plate's cells re-emitting through the BTDF (rough_transport: scattered, 25 mm cells, their "
-    "light occluded by the aperture) give the mean (-0.2 %) but an RMS of 1.8 %: +3 % between the "
-    "tubes (y 0), -2 % beyond them (y +-120 mm, the tubes at +-90 mm)")
+    "light sampled finely near the tubes) meet the truth, 0.67 % / 0.67 % (the slow test below), but "
+    "take about 100 s a grid against 1 s, so 'auto' does not pick them yet")
+
+_ROUGH_CAVITY = (
+    "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) "
+    "and 1.5 % (floor), the model high: two errors of opposite sign.  Its direct light on straight paths "
+    "(the regime the lobe's footprint picks at 50 mm cells) is 2.4 % under Mitsuba (the plate's cells, "
+    "rough_transport: scattered, 25 mm: +0.3 % against a render of the scene with every surface black); "
+    "the light of the white cavity crossing the plate is 6.1 % of itself (2.7 % of the total) too high "
+    "(the scene with a black ceiling: +0.1 %; with black walls and floor: +2.8 %, the same with 25 mm "
+    "patches).  The black tubes absorb a quarter of the cavity's light in the model (without their "
+    "bodies it is 32 % higher); a wide lobe sees them from more directions than the straight line the "
+    "model follows through the plate")
 
 #: (scene, grid) the forward model does not meet yet: what physics it is missing, as measured
 #: (empty: every scene meets its threshold)
 KNOWN_GAPS: dict[tuple[str, str], str] = {
-    ("rough-cavity-45", "a3"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
-    ("rough-cavity-45", "floor"): "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) and 1.5 % (floor), the model high.  Its direct light, on straight paths (the regime the lobe's footprint picks at 50 mm cells), is 2.4 % under Mitsuba (the plate's cells at 25 mm agree), and the cavity's light crossing the plate along lines with T(theta) is about 4 % of the total too high",
+    ("rough-cavity-45", "a3"): _ROUGH_CAVITY,
+    ("rough-cavity-45", "floor"): _ROUGH_CAVITY,
     ("aperture-diffuser", "a3"): _APERTURE_DIFFUSER,
     ("aperture-diffuser", "floor"): _APERTURE_DIFFUSER,
 }
@@ -168,3 +179,17 @@ def test_committed_truth_agrees_with_a_fresh_render():
     assert len(rows) == 2 * len(CASES)
     bad = [r for r in rows if not r["agree"]]
     assert not bad and out.returncode == 0, bad
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("grid", ["a3", "floor"])
+def test_a_wide_rough_plate_close_under_tubes_meets_the_truth_through_its_cells(grid):
+    # aperture-diffuser's known gap is the regime its lobe's footprint picks (straight paths); the
+    # plate's cells re-emitting through the BTDF, 25 mm, their light sampled finely near the tubes
+    # (14 mm above the plate), meet the truth (measured 0.67 % / 0.67 %; 1.8 % / 1.3 % with 2 × 2
+    # points a cell).  Slow: about 100 s a grid.
+    ir = _ir("aperture-diffuser")
+    effects = {k: dict(v) for k, v in ir.effects.items()}
+    effects["diffuser"] = {**effects["diffuser"], "rough_transport": "scattered", "cell_size_mm": 25.0}
+    c = compare_with_truth(VALIDATION / "aperture-diffuser", grid, ir=ir.model_copy(update={"effects": effects}))
+    assert c.rms_noise_removed_percent <= RT.THRESHOLDS_PERCENT["aperture-diffuser"], c.rms_percent

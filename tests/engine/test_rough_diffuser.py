@@ -181,3 +181,69 @@ def test_an_opal_plate_scatters_the_regular_light_it_loses_at_oblique_incidence(
     tau = plates.opal_optical_depth(0.05, n)
     e = np.exp(-tau)
     assert (1 - r0) ** 2 * e / (1 - r0 ** 2 * e ** 2) == pytest.approx(0.05, rel=1e-9)
+
+
+_NEAR_TUBE_BOOTH = """\
+version: 1
+kind: booth
+name: A rough plate 14 mm under a long tube
+provenance: {status: synthetic, source: lbscene tests}
+interior: {type: box, width_mm: 1400, depth_mm: 600, height_mm: 700, open_front: true}
+materials:
+  black: {type: diffuse, reflectance: {type: constant, value: 0.0}}
+surfaces: {floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}
+lamps:
+  - {id: tube, type: tube, position_mm: [0, 0, 627], axis: [1, 0, 0], length_mm: 1200, radius_mm: 13,
+     spd: {type: cie_illuminant, name: D65}, output: {type: luminance_cd_m2, value_cd_m2: 20000}}
+diffuser:
+  z_mm: 600
+  size_mm: [100, 300]
+  thickness_mm: 3
+  ior: 1.49
+  transmittance: {type: constant, value: 0.8}
+  scattering: {type: roughness, roughness: 0.5477}
+lighting:
+  L: {lamps: [tube]}
+observer: {type: eye_point, position_mm: [0, -900, 500]}
+effects:
+  diffuser: {}
+"""
+
+
+def _strip_flux_per_peak_intensity(tmp_path):
+    """Flux the rough plate's cells receive (per unit peak intensity of the lamp), summed over
+    each row of cells parallel to the tube, keyed by the row's y-range in mm."""
+    from lbscene.engine.light.effects.builtin import diffuser as D
+    from lbscene.engine.light.geometry import quad_areas, quad_centroids
+
+    (tmp_path / "booth.yaml").write_text(_NEAR_TUBE_BOOTH)
+    ir = compile_booth(tmp_path)
+    fm = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered", "cell_size_mm": 25}})
+
+    def direct(points, normals, exclude=()):
+        raise AssertionError("the rough source reads its light point by point")
+    direct.per_point = lambda points, normals, exclude=(): fm.direct_per_point(points, normals, exclude=exclude)
+    polys, groups, terms, E, _, _ = D.DiffuserEffect._rough_incoming(fm.ctx, fm.ctx.params("diffuser"), direct)
+    per_cell = np.zeros(len(polys))
+    for j in range(len(terms)):
+        for gi, (idx, _) in enumerate(groups):
+            per_cell[idx] += E[j][gi].sum(axis=1)                  # the cell's mean irradiance, 1/m²
+    flux = per_cell * quad_areas(polys) * 1e-6                      # per unit peak intensity
+    y0 = np.round(polys[:, :, 1].min(axis=1), 6)
+    return {(a, a + 25.0): flux[y0 == a].sum() for a in np.unique(y0)}
+
+
+def test_the_light_a_plate_cell_close_under_a_tube_receives_is_integrated_finely(tmp_path):
+    # an infinitely long Lambertian cylinder sends a parallel strip the share (φ_b − φ_a)/2π of its
+    # flux, φ the strip's edges seen from the axis (the crossed-strings result): per unit peak
+    # intensity I = L·2r·ℓ, a strip of length X receives π·Δφ·X/(2ℓ).  The tube's axis is 27 mm
+    # above the plate (its surface 14 mm); the cells are 25 mm, the strip 100 mm long, the tube
+    # 1200 mm (its ends, 550 mm away, add < 0.1 %)
+    h, X, ell = 27.0, 100.0, 1200.0
+
+    def closed_form(a, b):
+        return np.pi * (np.arctan(b / h) - np.arctan(a / h)) * X / (2 * ell)
+    got = _strip_flux_per_peak_intensity(tmp_path)
+    assert len(got) == 12
+    err = {k: f / closed_form(*k) - 1 for k, f in got.items()}
+    assert max(abs(e) for e in err.values()) < 0.01, err
