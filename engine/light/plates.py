@@ -88,6 +88,8 @@ __all__ = [
     "diffuser_transmittance_1nm",
     "is_rough",
     "plate_slab",
+    "specular_plate",
+    "plate_top_mm",
     "slab_relative",
     "fresnel_relative",
     "FresnelWeight",
@@ -141,6 +143,18 @@ def diffuser_transmittance_1nm(ctx, p) -> np.ndarray:
 def is_rough(ir) -> bool:
     """Whether the booth's diffuser is a ``roughness`` plate (rough glass)."""
     return ir.diffuser is not None and ir.diffuser.scattering.get("type") == "roughness"
+
+
+def specular_plate(ir, p) -> bool:
+    """Does the plate reflect the lamps' light as mirror images (a clear or rough plate with
+    ``plate_reflection: specular``)?"""
+    d = ir.diffuser
+    return d is not None and p.plate_reflection == "specular" and d.scattering.get("type") != "lambertian"
+
+
+def plate_top_mm(ir) -> float:
+    """Height of the plate's top face (mm)."""
+    return float(ir.diffuser.z_mm + ir.diffuser.thickness_mm / 2)
 
 
 def plate_slab(ir):

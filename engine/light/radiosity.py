@@ -834,14 +834,18 @@ class RadiosityTransport:
         directional reflectance relative to its hemispherical one, :math:`R(θ_i)/R_h`: the lamps'
         light reaches the plate at its own incidence, while the patch reflects with
         :math:`R_h` (:func:`lbscene.engine.light.plates.plate_reflectance`; at the bands' mean
-        absorption)."""
+        absorption).  A plate that reflects the lamps specularly (their images in it carry that
+        light, :func:`lbscene.engine.light.plates.specular_plate`) re-emits none of it: 0 there."""
         ir = self.ctx.ir
         if not (self.patches.material == PLATE_MATERIAL).any():
             return base
-        from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance, plate_reflectance
+        from .plates import (diffuser_transmittance_1nm, plate_hemispherical_reflectance, plate_reflectance,
+                             specular_plate)
 
         d = ir.diffuser
-        T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, self.ctx.params("diffuser")))))
+        dp = self.ctx.params("diffuser")
+        specular = specular_plate(ir, dp)
+        T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, dp))))
         Rh = float(plate_hemispherical_reflectance(ir, np.array([T]))[0])
         z_top = d.z_mm + d.thickness_mm / 2
         lo = np.array([d.centre_mm[0] - d.size_mm[0] / 2, d.centre_mm[1] - d.size_mm[1] / 2])
@@ -853,6 +857,10 @@ class RadiosityTransport:
                                                                     (P[:, :2] <= hi + 1e-6), axis=1)
             if not on.any() or Rh <= 0:
                 return f
+            if specular:
+                w = np.ones((len(P), len(es.points_mm)))
+                w[on] = 0.0
+                return w if f is None else f * w
             d_ = es.points_mm[None, :, :] - P[on][:, None, :]
             cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
             w = np.ones((len(P), len(es.points_mm)))

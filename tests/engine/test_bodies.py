@@ -143,7 +143,8 @@ def test_patches_next_to_a_tube_close_under_a_ceiling_are_narrower_than_the_gap(
     """Four tubes whose surfaces are 7 mm under an 85 % ceiling: the ceiling patches next to a
     tube must be narrower than that gap (the strip a tube lights most is the strip it hides),
     while far from the tubes the declared 100 mm patches stay."""
-    from lbscene.engine.light.radiosity import REFINE_MIN_BODY_MM, _lamp_distance_mm, interior_patches
+    from lbscene.engine.light.geometry import lamp_surface_distance_mm
+    from lbscene.engine.light.radiosity import REFINE_MIN_BODY_MM, interior_patches
 
     ir = compile_booth(VALIDATION / "ceiling-85")
     p = interior_patches(ir, 100.0, lamps=list(ir.lamps))
@@ -151,7 +152,7 @@ def test_patches_next_to_a_tube_close_under_a_ceiling_are_narrower_than_the_gap(
     c = p.centres[ceiling]
     q = p.polys[ceiling]
     side = np.maximum(np.linalg.norm(q[:, 1] - q[:, 0], axis=1), np.linalg.norm(q[:, 3] - q[:, 0], axis=1))
-    gap = _lamp_distance_mm(ir.lamps, c)
+    gap = lamp_surface_distance_mm(ir.lamps, c)
     near = gap < 10.0
     assert near.sum() > 100
     assert side[near].max() < 7.0 and side[near].min() >= REFINE_MIN_BODY_MM

@@ -52,22 +52,9 @@ _APERTURE_DIFFUSER = (
     "light sampled finely near the tubes) meet the truth, 0.67 % / 0.67 % (the slow test below), but "
     "take about 100 s a grid against 1 s, so 'auto' does not pick them yet")
 
-_ROUGH_CAVITY = (
-    "rough plate of GGX alpha 0.3 spanning a box, tubes 48 mm above it in a white cavity: RMS 1.7 % (a3) "
-    "and 1.5 % (floor), the model high: two errors of opposite sign.  Its direct light on straight paths "
-    "(the regime the lobe's footprint picks at 50 mm cells) is 2.4 % under Mitsuba (the plate's cells, "
-    "rough_transport: scattered, 25 mm: +0.3 % against a render of the scene with every surface black); "
-    "the light of the white cavity crossing the plate is 6.1 % of itself (2.7 % of the total) too high "
-    "(the scene with a black ceiling: +0.1 %; with black walls and floor: +2.8 %, the same with 25 mm "
-    "patches).  The black tubes absorb a quarter of the cavity's light in the model (without their "
-    "bodies it is 32 % higher); a wide lobe sees them from more directions than the straight line the "
-    "model follows through the plate")
-
 #: (scene, grid) the forward model does not meet yet: what physics it is missing, as measured
 #: (empty: every scene meets its threshold)
 KNOWN_GAPS: dict[tuple[str, str], str] = {
-    ("rough-cavity-45", "a3"): _ROUGH_CAVITY,
-    ("rough-cavity-45", "floor"): _ROUGH_CAVITY,
     ("aperture-diffuser", "a3"): _APERTURE_DIFFUSER,
     ("aperture-diffuser", "floor"): _APERTURE_DIFFUSER,
 }

@@ -247,3 +247,65 @@ def test_the_light_a_plate_cell_close_under_a_tube_receives_is_integrated_finely
     assert len(got) == 12
     err = {k: f / closed_form(*k) - 1 for k, f in got.items()}
     assert max(abs(e) for e in err.values()) < 0.01, err
+
+
+def _bulb_over_plate(tmp_path, plate: bool, reflection: str = "specular"):
+    diffuser = """diffuser:
+  z_mm: 300
+  size_mm: [1100, 1100]
+  thickness_mm: 3
+  ior: 1.5
+  transmittance: {type: constant, value: 0.9199}
+  scattering: {type: roughness, roughness: 0.04}
+""" if plate else ""
+    effects = f"  diffuser: {{plate_reflection: {reflection}}}\n" if plate else ""
+    tmp_path.mkdir(parents=True)
+    (tmp_path / "booth.yaml").write_text(f"""\
+version: 1
+kind: booth
+name: A bulb over a glass plate
+provenance: {{status: synthetic, source: lbscene tests}}
+interior: {{type: box, width_mm: 1200, depth_mm: 1200, height_mm: 800, open_front: true}}
+materials:
+  black: {{type: diffuse, reflectance: {{type: constant, value: 0.0}}}}
+surfaces: {{floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}}
+lamps:
+  - {{id: bulb, type: bulb, position_mm: [0, 0, 400], radius_mm: 5, spd: {{type: cie_illuminant, name: D65}},
+     output: {{type: luminance_cd_m2, value_cd_m2: 20000}}}}
+{diffuser}lighting:
+  L: {{lamps: [bulb]}}
+observer: {{type: eye_point, position_mm: [0, -900, 500]}}
+effects:
+{effects}  interreflection: {{}}
+""")
+    return compile_booth(tmp_path)
+
+
+@pytest.mark.parametrize("x_mm", [150.0, 400.0])
+def test_a_glass_plate_reflects_a_lamp_above_it_as_its_mirror_image(tmp_path, x_mm):
+    # a bulb 100 mm over a smooth glass plate (n 1.5, no absorption: the declared 0.9199 is the
+    # clear slab's own), a receiver beside and above it facing down: it gets the bulb and the
+    # bulb's image 100 mm under the plate's top face, times the slab's reflectance with its
+    # inner reflections, R = 1 − T = 2F/(1 + F), at the image path's incidence (F unpolarised at
+    # each face, as the rough slab and Mitsuba 3's scalar variants take it)
+    P = np.array([[x_mm, 0.0, 500.0]])
+    N = np.array([[0.0, 0.0, -1.0]])
+    bare = ForwardModel(_bulb_over_plate(tmp_path / "bare", False), "L").illuminance_lx(P, N, meter=False)[0]
+    ir = _bulb_over_plate(tmp_path / "plate", True)
+    with_plate = ForwardModel(ir, "L").illuminance_lx(P, N, meter=False)[0]
+    bulb = np.array([0.0, 0.0, 400.0])
+    image = np.array([0.0, 0.0, 2 * 301.5 - 400.0])
+    d0, d1 = P[0] - bulb, P[0] - image
+    cos0, cos1 = d0[2] / np.linalg.norm(d0), d1[2] / np.linalg.norm(d1)
+    sin_t = np.sqrt(1 - cos1 ** 2) / 1.5
+    cos_t = np.sqrt(1 - sin_t ** 2)
+    rs = ((cos1 - 1.5 * cos_t) / (cos1 + 1.5 * cos_t)) ** 2
+    rp = ((cos_t - 1.5 * cos1) / (cos_t + 1.5 * cos1)) ** 2
+    F = 0.5 * (rs + rp)
+    R = 2 * F / (1 + F)
+    image_share = R * (cos1 / (d1 @ d1)) / (cos0 / (d0 @ d0))
+    assert with_plate / bare - 1 == pytest.approx(image_share, rel=0.03)
+    # re-emitted by the plate's patches instead (Lambertian), it is spread over the hemisphere
+    diffuse = ForwardModel(_bulb_over_plate(tmp_path / "diffuse", True, "diffuse"), "L").illuminance_lx(
+        P, N, meter=False)[0]
+    assert abs(diffuse / bare - 1 - image_share) > 0.1 * image_share

@@ -10,7 +10,11 @@ from the plate's cells with the opal exit law (Lambertian times the bottom face'
 :func:`lbscene.engine.light.plates.opal_exit_shape`).  The declared transmittance is the
 plate's total at normal incidence (:func:`lbscene.engine.light.plates.reference_transmittance`).  A ``roughness`` plate (rough
 glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on re-emitting
-cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  The plate itself
+cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  A clear or rough plate
+reflects the lamps above it specularly: each lamp gets a mirror image under the plate's top face
+(``extra_emitters``), seen through the plate and past the lamp's body, times the plate's
+directional reflectance :math:`R(θ)` at the path's incidence (``plate_reflection: specular``; the
+inter-reflection's plate patches then re-emit none of the lamps' light).  The plate itself
 (rectangle, transmittances) is :mod:`lbscene.engine.light.plates`.
 """
 
@@ -24,10 +28,10 @@ from pydantic import Field
 from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel,
                                                   PhysicalEffect)
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
-from lbscene.engine.light.plates import (OpalEntryWeight, diffuser_fraction, diffuser_rect,
+from lbscene.engine.light.plates import (OpalEntryWeight, absorption_squared, diffuser_fraction, diffuser_rect,
                                          diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
-                                         plate_lobe_footprint_mm, plate_slab, reference_transmittance,
-                                         slab_relative)
+                                         plate_lobe_footprint_mm, plate_slab, plate_top_mm,
+                                         reference_transmittance, slab_relative, specular_plate)
 
 __all__ = ["DiffuserEffect"]
 
@@ -62,6 +66,11 @@ class DiffuserEffect(PhysicalEffect):
         cell_size_mm: float = Field(50.0, gt=1, le=1000,
                                     description="Cell size of the re-emitting plate (diffuse part; "
                                                 "a rough plate's scattered light).")
+        plate_reflection: Literal["specular", "diffuse"] = Field(
+            "specular", description="How a clear or rough plate's top face reflects the lamps' light: "
+                                    "'specular' (the lamps' mirror images in it, times its "
+                                    "reflectance R(θ)), 'diffuse' (re-emitted by the inter-reflection's "
+                                    "plate patches, Lambertian).  Opal plates reflect diffusely.")
         rough_transport: Literal["auto", "regular", "scattered"] = Field(
             "auto", description="A roughness plate's light: 'regular' (straight paths times the "
                                 "rough slab's transmittance T(θ)), 'scattered' (plate cells "
@@ -81,11 +90,30 @@ class DiffuserEffect(PhysicalEffect):
             return True
         return plate_lobe_footprint_mm(ctx.ir, ctx.lighting) > p.cell_size_mm
 
+    @staticmethod
+    def extra_emitters(ctx, p, lamp, es):
+        """The lamp's mirror image in the plate's top face (``plate_reflection: specular``, a
+        clear or rough plate, the lamp above it): light the plate reflects goes on as from the
+        image, through the plate's extent, times :math:`R(θ)` (:func:`_image_channels`)."""
+        if not specular_plate(ctx.ir, p) or es.meta.get("plate_image"):
+            return []
+        z = plate_top_mm(ctx.ir)
+        if es.points_mm[:, 2].min() <= z:
+            return []
+        pts = np.array(es.points_mm, float, copy=True)
+        pts[:, 2] = 2.0 * z - pts[:, 2]
+        half = None if es.half_step is None else np.asarray(es.half_step, float) * np.array([1.0, 1.0, -1.0])
+        return [es.with_(points_mm=pts, half_step=half, direction_map=_flip_z, tag="plate-image",
+                         spectral_key=es.spectral_key + ("plate-reflection",),
+                         meta={**es.meta, "plate_image": True})]
+
     @classmethod
     def path_factors(cls, ctx, p, es, rx):
         ir = ctx.ir
         if ir.diffuser is None:
             return None
+        if es.meta.get("plate_image"):
+            return _image_channels(ctx, p, es, rx)
         hit = ctx.fraction_hitting(es, rx, diffuser_rect(ir))
         if not hit.any():
             return None
@@ -277,3 +305,40 @@ class DiffuserEffect(PhysicalEffect):
 
         return out + [DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)), radiance,
                                         descr)]
+
+
+def _flip_z(u):
+    """Mirror directions across a horizontal plane (an image's light back to its lamp's frame)."""
+    out = np.array(u, float, copy=True)
+    out[..., 2] *= -1.0
+    return out
+
+
+def _image_channels(ctx, p, es, rx):
+    """Path factors of a lamp's image in the plate's top face: its light leaves through the
+    plate's rectangle (a receiver below the plate gets none) and past the lamp's body (light
+    reflected straight back meets the tube), times the plate's directional reflectance at the
+    path's incidence, :math:`R_\\text{top}(θ) + a^2(λ) R_\\text{int}(θ)` for a rough plate (the
+    part reflected inside the plate crosses its absorbing bulk twice) and the clear slab's
+    :math:`1 - T(θ)` otherwise."""
+    from lbscene.engine.light.geometry import lamp_body
+
+    ir = ctx.ir
+    f = ctx.fraction_hitting(es, rx, diffuser_rect(ir))
+    if not f.any():
+        return [PathChannel(f)]
+    lamp = ir.lamp(es.lamp_id)
+    body = lamp_body(lamp) if lamp.mount == "booth" else None
+    if body is not None:
+        f = f * ctx.fraction_past_body(es, rx, body)
+    d = rx[:, None, :] - es.points_mm[None, :, :]
+    cos_i = np.clip(d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-12), 0.0, 1.0)
+    if is_rough(ir):
+        slab = plate_slab(ir)
+        a2 = absorption_squared(ir, diffuser_transmittance_1nm(ctx, p))
+        return [PathChannel(f * slab.reflectance(cos_i, 0.0)),
+                PathChannel(f * (slab.reflectance(cos_i, 1.0) - slab.reflectance(cos_i, 0.0)),
+                            "plate-internal-reflection", a2)]
+    from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
+
+    return [PathChannel(f * (1.0 - fresnel_slab_transmittance(cos_i, ir.diffuser.ior)))]
