@@ -52,9 +52,19 @@ _APERTURE_DIFFUSER = (
     "light sampled finely near the tubes) meet the truth, 0.67 % / 0.67 % (the slow test below), but "
     "take about 100 s a grid against 1 s, so 'auto' does not pick them yet")
 
+_GLASS_CAVITY = (
+    "a glass plate (roughness 0.04) under two tubes in a white cavity, 0.45 walls: RMS 1.8 % (a3) and "
+    "2.2 % (floor), the model high (3.3 / 3.7 % when the plate re-emitted the lamps' reflection "
+    "diffusely).  Rendered apart (a3): the direct light through the glass -0.5 %; with the ceiling black "
+    "+0.5 % (the room's light +3.7 % of itself; -0.7 % with the diffuse reflection); the scene's "
+    "inter-reflected light in all +3.3 % of itself.  With the room black and the ceiling white the "
+    "same tubes and a glass plate of roughness 0.1 are +1.0 %")
+
 #: (scene, grid) the forward model does not meet yet: what physics it is missing, as measured
 #: (empty: every scene meets its threshold)
 KNOWN_GAPS: dict[tuple[str, str], str] = {
+    ("glass-cavity-45", "a3"): _GLASS_CAVITY,
+    ("glass-cavity-45", "floor"): _GLASS_CAVITY,
     ("aperture-diffuser", "a3"): _APERTURE_DIFFUSER,
     ("aperture-diffuser", "floor"): _APERTURE_DIFFUSER,
 }

@@ -51,6 +51,8 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           "ceiling-85", "ceiling-85-spaced", "mirror-strip", "mirror-behind", "mirror-prism",
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
           "rough-cavity-45",
+          # a glass plate reflecting the tubes into a white cavity
+          "glass-cavity-45",
           # opal plates (faces matched to the air: the scattering layer alone)
           "opal-black", "opal-grey", "opal-cavity-45",
           # a diffuser inside a cavity closed by an aperture plate
@@ -64,7 +66,7 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "ceiling-85": 1.0, "ceiling-85-spaced": 1.0, "mirror-strip": 1.0, "mirror-behind": 1.0,
                       "mirror-prism": 1.0,
                       # plates
-                      "rough-cavity-45": 1.0,
+                      "rough-cavity-45": 1.0, "glass-cavity-45": 1.0,
                       "opal-black": 1.0, "opal-grey": 1.0, "opal-cavity-45": 1.0,
                       "aperture-diffuser": 1.0}
 #: scenes whose truth covers some grids only (the others: every grid of
