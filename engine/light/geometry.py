@@ -42,6 +42,8 @@ __all__ = [
     "mesh_patches",
     "quad_subpoints",
     "lamp_surface_distance_mm",
+    "mirror_points",
+    "mirror_directions",
     "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
@@ -955,6 +957,21 @@ def _paired_segments_hit_rectangle(a: np.ndarray, b: np.ndarray, rect: Rectangle
     if rect.hole_half is not None:
         inside &= ~((np.abs(pu) < rect.hole_half[0]) & (np.abs(pv) < rect.hole_half[1]))
     return ok & inside
+
+
+def mirror_points(x, centre, normal) -> np.ndarray:
+    """Points ``x`` (..., 3) mirrored across the plane through ``centre`` with unit ``normal``
+    (a lamp's image in a mirror or a glass plate)."""
+    x = np.asarray(x, float)
+    n = np.asarray(normal, float)
+    return x - 2.0 * ((x - np.asarray(centre, float)) @ n)[..., None] * n
+
+
+def mirror_directions(u, normal) -> np.ndarray:
+    """Directions ``u`` (..., 3) mirrored across a plane of unit ``normal``."""
+    u = np.asarray(u, float)
+    n = np.asarray(normal, float)
+    return u - 2.0 * (u @ n)[..., None] * n
 
 
 def lamp_surface_distance_mm(lamps, points: np.ndarray) -> np.ndarray:

@@ -840,14 +840,14 @@ class RadiosityTransport:
         if not (self.patches.material == PLATE_MATERIAL).any():
             return base
         from .plates import (diffuser_transmittance_1nm, plate_hemispherical_reflectance, plate_reflectance,
-                             specular_plate)
+                             plate_top_mm, specular_plate)
 
         d = ir.diffuser
         dp = self.ctx.params("diffuser")
         specular = specular_plate(ir, dp)
         T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, dp))))
         Rh = float(plate_hemispherical_reflectance(ir, np.array([T]))[0])
-        z_top = d.z_mm + d.thickness_mm / 2
+        z_top = plate_top_mm(ir)
         lo = np.array([d.centre_mm[0] - d.size_mm[0] / 2, d.centre_mm[1] - d.size_mm[1] / 2])
         hi = np.array([d.centre_mm[0] + d.size_mm[0] / 2, d.centre_mm[1] + d.size_mm[1] / 2])
 
@@ -857,14 +857,13 @@ class RadiosityTransport:
                                                                     (P[:, :2] <= hi + 1e-6), axis=1)
             if not on.any() or Rh <= 0:
                 return f
-            if specular:
-                w = np.ones((len(P), len(es.points_mm)))
-                w[on] = 0.0
-                return w if f is None else f * w
-            d_ = es.points_mm[None, :, :] - P[on][:, None, :]
-            cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
             w = np.ones((len(P), len(es.points_mm)))
-            w[on] = plate_reflectance(ir, cos_i, np.array([T]))[..., 0] / Rh
+            if specular:
+                w[on] = 0.0
+            else:
+                d_ = es.points_mm[None, :, :] - P[on][:, None, :]
+                cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
+                w[on] = plate_reflectance(ir, cos_i, np.array([T]))[..., 0] / Rh
             return w if f is None else f * w
 
         return factor

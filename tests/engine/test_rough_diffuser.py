@@ -183,30 +183,37 @@ def test_an_opal_plate_scatters_the_regular_light_it_loses_at_oblique_incidence(
     assert (1 - r0) ** 2 * e / (1 - r0 ** 2 * e ** 2) == pytest.approx(0.05, rel=1e-9)
 
 
-_NEAR_TUBE_BOOTH = """\
+def _black_box_booth(folder, name, interior, lamp_id, lamp, diffuser="", effects="  diffuser: {}\n"):
+    """Write and compile a booth: a black open-front box, one lamp ``lamp_id`` (the rest of its
+    YAML flow mapping in ``lamp``), lighting ``L`` with it, an optional diffuser block and the
+    ``effects:`` lines."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "booth.yaml").write_text(f"""\
 version: 1
 kind: booth
-name: A rough plate 14 mm under a long tube
-provenance: {status: synthetic, source: lbscene tests}
-interior: {type: box, width_mm: 1400, depth_mm: 600, height_mm: 700, open_front: true}
+name: {name}
+provenance: {{status: synthetic, source: lbscene tests}}
+interior: {{type: box, {interior}, open_front: true}}
 materials:
-  black: {type: diffuse, reflectance: {type: constant, value: 0.0}}
-surfaces: {floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}
+  black: {{type: diffuse, reflectance: {{type: constant, value: 0.0}}}}
+surfaces: {{floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}}
 lamps:
-  - {id: tube, type: tube, position_mm: [0, 0, 627], axis: [1, 0, 0], length_mm: 1200, radius_mm: 13,
-     spd: {type: cie_illuminant, name: D65}, output: {type: luminance_cd_m2, value_cd_m2: 20000}}
-diffuser:
+  - {{id: {lamp_id}, {lamp}}}
+{diffuser}lighting:
+  L: {{lamps: [{lamp_id}]}}
+observer: {{type: eye_point, position_mm: [0, -900, 500]}}
+effects:
+{effects}""")
+    return compile_booth(folder)
+
+
+_NEAR_TUBE_DIFFUSER = """diffuser:
   z_mm: 600
   size_mm: [100, 300]
   thickness_mm: 3
   ior: 1.49
   transmittance: {type: constant, value: 0.8}
   scattering: {type: roughness, roughness: 0.5477}
-lighting:
-  L: {lamps: [tube]}
-observer: {type: eye_point, position_mm: [0, -900, 500]}
-effects:
-  diffuser: {}
 """
 
 
@@ -216,8 +223,11 @@ def _strip_flux_per_peak_intensity(tmp_path):
     from lbscene.engine.light.effects.builtin import diffuser as D
     from lbscene.engine.light.geometry import quad_areas, quad_centroids
 
-    (tmp_path / "booth.yaml").write_text(_NEAR_TUBE_BOOTH)
-    ir = compile_booth(tmp_path)
+    ir = _black_box_booth(
+        tmp_path, "A rough plate 14 mm under a long tube", "width_mm: 1400, depth_mm: 600, height_mm: 700",
+        "tube", "type: tube, position_mm: [0, 0, 627], axis: [1, 0, 0], length_mm: 1200, radius_mm: 13, "
+        "spd: {type: cie_illuminant, name: D65}, output: {type: luminance_cd_m2, value_cd_m2: 20000}",
+        _NEAR_TUBE_DIFFUSER)
     fm = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered", "cell_size_mm": 25}})
 
     def direct(points, normals, exclude=()):
@@ -259,26 +269,10 @@ def _bulb_over_plate(tmp_path, plate: bool, reflection: str = "specular"):
   scattering: {type: roughness, roughness: 0.04}
 """ if plate else ""
     effects = f"  diffuser: {{plate_reflection: {reflection}}}\n" if plate else ""
-    tmp_path.mkdir(parents=True)
-    (tmp_path / "booth.yaml").write_text(f"""\
-version: 1
-kind: booth
-name: A bulb over a glass plate
-provenance: {{status: synthetic, source: lbscene tests}}
-interior: {{type: box, width_mm: 1200, depth_mm: 1200, height_mm: 800, open_front: true}}
-materials:
-  black: {{type: diffuse, reflectance: {{type: constant, value: 0.0}}}}
-surfaces: {{floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}}
-lamps:
-  - {{id: bulb, type: bulb, position_mm: [0, 0, 400], radius_mm: 5, spd: {{type: cie_illuminant, name: D65}},
-     output: {{type: luminance_cd_m2, value_cd_m2: 20000}}}}
-{diffuser}lighting:
-  L: {{lamps: [bulb]}}
-observer: {{type: eye_point, position_mm: [0, -900, 500]}}
-effects:
-{effects}  interreflection: {{}}
-""")
-    return compile_booth(tmp_path)
+    return _black_box_booth(
+        tmp_path, "A bulb over a glass plate", "width_mm: 1200, depth_mm: 1200, height_mm: 800",
+        "bulb", "type: bulb, position_mm: [0, 0, 400], radius_mm: 5, spd: {type: cie_illuminant, name: D65}, "
+        "output: {type: luminance_cd_m2, value_cd_m2: 20000}", diffuser, effects + "  interreflection: {}\n")
 
 
 @pytest.mark.parametrize("x_mm", [150.0, 400.0])

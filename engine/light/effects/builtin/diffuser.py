@@ -30,7 +30,7 @@ from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import (OpalEntryWeight, absorption_squared, diffuser_fraction, diffuser_rect,
                                          diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
-                                         plate_lobe_footprint_mm, plate_slab, plate_top_mm,
+                                         plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
                                          reference_transmittance, slab_relative, specular_plate)
 
 __all__ = ["DiffuserEffect"]
@@ -95,15 +95,20 @@ class DiffuserEffect(PhysicalEffect):
         """The lamp's mirror image in the plate's top face (``plate_reflection: specular``, a
         clear or rough plate, the lamp above it): light the plate reflects goes on as from the
         image, through the plate's extent, times :math:`R(θ)` (:func:`_image_channels`)."""
+        from functools import partial
+
+        from lbscene.engine.light.geometry import mirror_directions, mirror_points
+
         if not specular_plate(ctx.ir, p) or es.meta.get("plate_image"):
             return []
         z = plate_top_mm(ctx.ir)
         if es.points_mm[:, 2].min() <= z:
             return []
-        pts = np.array(es.points_mm, float, copy=True)
-        pts[:, 2] = 2.0 * z - pts[:, 2]
-        half = None if es.half_step is None else np.asarray(es.half_step, float) * np.array([1.0, 1.0, -1.0])
-        return [es.with_(points_mm=pts, half_step=half, direction_map=_flip_z, tag="plate-image",
+        up = np.array([0.0, 0.0, 1.0])
+        pts = mirror_points(es.points_mm, [0.0, 0.0, z], up)
+        half = None if es.half_step is None else mirror_directions(es.half_step, up)
+        return [es.with_(points_mm=pts, half_step=half, direction_map=partial(mirror_directions, normal=up),
+                         tag="plate-image",
                          spectral_key=es.spectral_key + ("plate-reflection",),
                          meta={**es.meta, "plate_image": True})]
 
@@ -307,13 +312,6 @@ class DiffuserEffect(PhysicalEffect):
                                         descr)]
 
 
-def _flip_z(u):
-    """Mirror directions across a horizontal plane (an image's light back to its lamp's frame)."""
-    out = np.array(u, float, copy=True)
-    out[..., 2] *= -1.0
-    return out
-
-
 def _image_channels(ctx, p, es, rx):
     """Path factors of a lamp's image in the plate's top face: its light leaves through the
     plate's rectangle (a receiver below the plate gets none) and past the lamp's body (light
@@ -336,9 +334,8 @@ def _image_channels(ctx, p, es, rx):
     if is_rough(ir):
         slab = plate_slab(ir)
         a2 = absorption_squared(ir, diffuser_transmittance_1nm(ctx, p))
-        return [PathChannel(f * slab.reflectance(cos_i, 0.0)),
-                PathChannel(f * (slab.reflectance(cos_i, 1.0) - slab.reflectance(cos_i, 0.0)),
-                            "plate-internal-reflection", a2)]
-    from lbscene.engine.light.rough_slab import fresnel_slab_transmittance
-
-    return [PathChannel(f * (1.0 - fresnel_slab_transmittance(cos_i, ir.diffuser.ior)))]
+        r_top = slab.reflectance(cos_i, 0.0)
+        return [PathChannel(f * r_top),
+                PathChannel(f * (slab.reflectance(cos_i, 1.0) - r_top), "plate-internal-reflection", a2)]
+    # a clear plate's reflectance does not depend on its transmittance (its absorption neglected)
+    return [PathChannel(f * plate_reflectance(ir, cos_i, np.ones(1))[..., 0])]

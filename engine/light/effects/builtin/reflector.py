@@ -133,16 +133,17 @@ class ReflectorEffect(PhysicalEffect):
     def extra_emitters(ctx, p, lamp, es: EmitterSet) -> list[EmitterSet]:
         """The lamp's image in every mirror of the lighting (its own and the other lamps'):
         a plane mirror reflects whatever light reaches it."""
+        from functools import partial
+
+        from lbscene.engine.light.geometry import mirror_directions, mirror_points
+
         out = []
         for owner, refl, rect, facet in _mirrors(ctx, p):
             n = rect.normal
-            pts = es.points_mm - 2.0 * ((es.points_mm - rect.centre) @ n)[:, None] * n[None, :]
+            pts = mirror_points(es.points_mm, rect.centre, n)
             R = np.clip(refl.reflectance.array_1nm * p.reflectance_scale, 0.0, 1.0)
-
-            def reflect(u, n=n):
-                return u - 2.0 * (u @ n)[..., None] * n
-
-            half = None if es.half_step is None else es.half_step - 2.0 * (es.half_step @ n) * n
+            reflect = partial(mirror_directions, normal=n)
+            half = None if es.half_step is None else mirror_directions(es.half_step, n)
             tag = f"image:{lamp.reflector}" if owner.id == lamp.id else f"image:{owner.reflector}@{owner.id}"
             if facet is not None:
                 tag += f"/facet{facet}"
@@ -210,18 +211,13 @@ def _mirrored(body, rect):
     """``body`` (a Capsule or a Ball; others unchanged) reflected across the plane of ``rect``."""
     from dataclasses import replace
 
-    from lbscene.engine.light.geometry import Ball, Capsule
-
-    n, c = np.asarray(rect.normal, float), np.asarray(rect.centre, float)
-
-    def m(x):
-        x = np.asarray(x, float)
-        return x - 2.0 * ((x - c) @ n) * n
+    from lbscene.engine.light.geometry import Ball, Capsule, mirror_points
 
     if isinstance(body, Capsule):
-        return replace(body, p0=m(body.p0), p1=m(body.p1))
+        return replace(body, p0=mirror_points(body.p0, rect.centre, rect.normal),
+                       p1=mirror_points(body.p1, rect.centre, rect.normal))
     if isinstance(body, Ball):
-        return replace(body, centre=m(body.centre))
+        return replace(body, centre=mirror_points(body.centre, rect.centre, rect.normal))
     return body
 
 
