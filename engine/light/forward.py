@@ -830,11 +830,25 @@ class _ArcMean:
 
         _, nodes, (Nd, d2) = _cylinder_arc(d, N, axis, radius_mm)
         nodes = list(nodes)
-        den = sum(f for f, _ in nodes)
+        den = np.zeros(d2.shape)
+        mean = np.zeros(d2.shape)
+        for f, c in nodes:
+            den += f
+            mean += f * c
         lit = den > 0
         inv = np.where(lit, 1.0 / np.where(lit, den, 1.0), 0.0)
-        mean = sum(f * c for f, c in nodes) * inv
-        moments = [sum(f * (c - mean) ** n for f, c in nodes) * inv for n in (2, 3, 4)]
+        mean *= inv
+        # the central moments by products (a power with an integer exponent above 2 is a pow())
+        moments = [np.zeros(d2.shape) for _ in range(3)]
+        for f, c in nodes:
+            dc = c - mean
+            t = f * dc * dc
+            moments[0] += t
+            t *= dc
+            moments[1] += t
+            t *= dc
+            moments[2] += t
+        moments = [mu * inv for mu in moments]
         axis_cos = np.clip(-Nd / np.sqrt(np.maximum(d2, 1e-12)), 0.0, None)
         mean = np.clip(np.where(lit, mean, axis_cos), 0.0, 1.0)
         # each c̄'s interval of the table and its place in it; the series' coefficients

@@ -766,9 +766,11 @@ def _shown_params(items, eids, hw, fit: FitResult, free) -> tuple[dict, dict]:
     return shown, by_effect
 
 
-def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
+def _refit(b: _Base, items: tuple[str, ...], rival: float | None = None) -> Suspect | None:
     """Refit the booth with ``items`` (effect ids, ``hypothesis:<id>``) added, scored against the
-    base fit (None when a spectral hypothesis finds nothing to fit)."""
+    base fit (None when a spectral hypothesis finds nothing to fit).  ``rival``: the score of the
+    best explanation so far that reaches the noise; hardware whose geometry could not bring it
+    within the tie margin of that keeps its first guess (:func:`_cannot_rival`)."""
     cur_ir, new_eff, free, post, hw, n_params = _configure(b, items)
     m, c = _measurements_for(b, cur_ir, hw)
     noise = b.noise
@@ -793,6 +795,10 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
     k = len(free)
     for H in hw if len(items) == 1 else ():
         if H.channel == "spatial" and H.geometry(cur_ir, b.lighting):
+            why = _cannot_rival(b, fit, k, rival)
+            if why:
+                fit.hypothesis_data = {**(getattr(fit, "hypothesis_data", None) or {}), "not_profiled": why}
+                continue
             # properties the forward model cannot vary (a plate's height, a mirror's distance):
             # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
             # pair the hardware keeps the hypothesis' first guess
@@ -811,6 +817,30 @@ def _refit(b: _Base, items: tuple[str, ...]) -> Suspect | None:
     if cur_ir is not b.ir:
         fit.ir = cur_ir          # the booth this explanation predicts with (plan)
     return _finish(b, items, prob, fit, free, post, hw, n_params, cur_ir, k)
+
+
+#: what profiling a hypothesis' geometry may add to the white-tile shape gain of its first guess,
+#: as a multiple of that gain (see :func:`_cannot_rival`)
+SHAPE_GAIN_MARGIN = 2.0
+
+
+def _cannot_rival(b: _Base, fit: FitResult, k: int, rival: float | None) -> str:
+    """Why profiling a spatial hypothesis' geometry cannot change the verdict ('' if it might).
+
+    A geometry moves light: refitted over its properties it can at most remove the readings'
+    level χ² (``b.parts[0]``, every reading brought to its measured value); on the white tile's
+    shape it acts only through the mix of lamps and inter-reflected light its first guess already
+    shows, counted here as :data:`SHAPE_GAIN_MARGIN` times that guess' shape gain.  When that
+    best case, less the parameters' price, stays more than :data:`TIE_MARGIN` under ``rival`` (an
+    explanation that reaches the noise), the profile's refits (a few seconds each) are skipped."""
+    if rival is None:
+        return ""
+    shape_gain = b.parts[1] - _chi2_parts(fit, b.noise)[1]
+    best = b.parts[0] + SHAPE_GAIN_MARGIN * max(shape_gain, 0.0) - (k - len(b.free)) * b.logn
+    if best >= rival - TIE_MARGIN:
+        return ""
+    return (f"geometry not fitted: at best ΔBIC {best:.0f} with every reading's level explained, "
+            f"against {rival:.0f} for an explanation that reaches the noise")
 
 
 def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir, k: int | None = None) -> Suspect | None:
@@ -837,7 +867,13 @@ def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir, k: int
         structure_after=moran_i(b.pts, fit.residual_percent) if len(b.pts) else float("nan"),
         params=shown, fit=fit, spectral_rmse_after=fit.spectral_rmse_percent, effects=eids,
         params_by_effect=by_effect, items=items, channel_gain=gain, not_eligible=why_not,
-        hardware={H.id: y for H in hw if (y := H.hardware_yaml(cur_ir, fit))})
+        hardware={H.id: _not_profiled_note(fit) + y for H in hw if (y := H.hardware_yaml(cur_ir, fit))})
+
+
+def _not_profiled_note(fit: FitResult) -> str:
+    """A comment line saying a hypothesis' geometry kept its first guess, and why ('' if not)."""
+    why = (getattr(fit, "hypothesis_data", None) or {}).get("not_profiled")
+    return f"# hypothesis: {why}\n" if why else ""
 
 
 def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> list[Suspect]:
@@ -845,13 +881,22 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> lis
     # hardware the file does not declare is hypothesised only when the booth as declared leaves
     # something to explain: its residual above the noise, or a catalog effect that helps
     suspects = []
-    for k, item in enumerate(todo):
+
+    def spatial_hardware(item):
+        H = HYPOTHESES.get(item[len(HYPOTHESIS_PREFIX):]) if item.startswith(HYPOTHESIS_PREFIX) else None
+        return H is not None and H.hardware and H.channel == "spatial"
+
+    # hardware with a geometry to profile last: the explanations before it may make its profile
+    # moot (_cannot_rival)
+    order = [i for i in todo if not spatial_hardware(i)] + [i for i in todo if spatial_hardware(i)]
+    for k, item in enumerate(order):
         if item.startswith(HYPOTHESIS_PREFIX) and HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].hardware \
                 and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
             continue
         if progress:
-            progress(k, len(todo), item)
-        s_ = _refit(b, (item,))
+            progress(k, len(order), item)
+        rival = max((x.score for x in suspects if x.explains and not x.not_eligible), default=None)
+        s_ = _refit(b, (item,), rival)
         if s_ is not None:
             suspects.append(s_)
     suspects.sort(key=lambda s: -s.score)

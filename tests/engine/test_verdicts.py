@@ -135,3 +135,62 @@ def test_plan_predictions_stay_within_the_physical_bound(booth, tmp_path):
         assert all(0 <= v <= b for v in q.predicted_lx.values())
     # a vertical sensor 100 mm above a floor lit at ~1000 lx cannot read 20 000 lx
     assert all(v < 20000 for q in p.points for v in q.predicted_lx.values())
+
+
+# --------------------------------------------------------------------------- profiles that cannot matter
+
+
+def _stub_fit(lux_percent, tile_percent):
+    """The residuals _chi2_parts reads (illuminance and white-tile bands, in percent)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(residual_percent=np.asarray(lux_percent, float), lux_pred=np.ones(len(lux_percent)),
+                           spectral_residual_percent=np.asarray(tile_percent, float))
+
+
+def _stub_base(levels: float, shape: float):
+    from types import SimpleNamespace
+
+    noise = SimpleNamespace(percent=1.0, spectral_percent=1.0)
+    return SimpleNamespace(parts=(levels, shape), noise=noise, logn=np.log(100.0), free=[object()])
+
+
+def test_a_geometry_that_cannot_rival_the_explanation_is_not_profiled():
+    from lbscene.engine.loop.diagnose import _cannot_rival
+
+    b = _stub_base(levels=100.0, shape=5000.0)
+    # the hypothesis' first guess leaves the tile's shape as it was (its mean moved only)
+    same_shape = _stub_fit([0.0] * 4, [3.0, 3.0, 3.0])
+    b.parts = (100.0, 0.0)
+    why = _cannot_rival(b, same_shape, 2, rival=4000.0)
+    assert why == ("geometry not fitted: at best ΔBIC 95 with every reading's level explained, "
+                   "against 4000 for an explanation that reaches the noise")
+    # no explanation reaches the noise yet, or one that a perfect geometry could tie: profiled
+    assert _cannot_rival(b, same_shape, 2, rival=None) == ""
+    assert _cannot_rival(b, same_shape, 2, rival=100.0) == ""
+    # a first guess that already moves the tile's shape counts twice that gain in its best case
+    b.parts = (100.0, 2000.0)
+    reshaped = _stub_fit([0.0] * 4, [10.0, -10.0, 10.0, -10.0] + [0.0] * 16)   # shape χ² 400
+    assert _cannot_rival(b, reshaped, 2, rival=3000.0) == ""                  # 95 + 2·1600 ≥ 2990
+    assert _cannot_rival(b, reshaped, 2, rival=4000.0).startswith("geometry not fitted: at best ΔBIC 3295 ")
+
+
+def test_an_undeclared_filter_leaves_the_plates_unprofiled_and_says_so(tmp_path):
+    """On Mitsuba 3 truth with an undeclared filter the filter reaches the noise by thousands of
+    BIC units: the plate, cavity and mirror hypotheses keep their first guess, their hardware
+    says so, and the verdict is the filter's."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("diagnosis_on_truth", Path(__file__).parent / "test_diagnosis_on_truth.py")
+    T = sys.modules.setdefault("diagnosis_on_truth", importlib.util.module_from_spec(spec))
+    spec.loader.exec_module(T)
+    case = next(c for c in T.CASES if c.id == "filter-undeclared-fitted")
+    res = run_compare(T.make_case(case, tmp_path), history=False)
+    assert str(res.verdict) == "missing:spectral_filter"
+    hyps = {s.items[0]: s for s in res.diagnosis.suspects if s.items[0].startswith("hypothesis:")}
+    for h in ("hypothesis:diffuser_plate", "hypothesis:aperture_plate", "hypothesis:mirror"):
+        assert h in hyps, sorted(hyps)
+        assert hyps[h].fit.hypothesis_data["not_profiled"].startswith("geometry not fitted: at best ΔBIC ")
+        assert "geometry" not in hyps[h].fit.hypothesis_data
+        assert next(iter(hyps[h].hardware.values())).startswith("# hypothesis: geometry not fitted")
