@@ -86,6 +86,9 @@ STABLE_SHARE = 0.5
 #: margins; 1e-8 made weakly identified candidates (tube-end falloff: level and length) crawl
 #: along their valley for 400+ evaluations without changing the score.
 SCORING_TOLERANCE = 1e-4
+#: the same for the refits of a geometry's profile points: χ² to ~0.05 unit, far below the Δχ²
+#: of 1 its curvature and uncertainty are read at (a third of their evaluations)
+PROFILE_TOLERANCE = 1e-3
 
 
 @dataclass
@@ -809,7 +812,7 @@ def _refit(b: _Base, items: tuple[str, ...], rival: float | None = None) -> Susp
                       for fp in free]
                 c_v = {key: b.cache.setdefault(key, {}) for key in SHARED_GEOMETRY_STORES}
                 p_v = FitProblem(replace(m, ir=ir_v), new_eff, fr, noise.percent, noise.spectral_percent, c_v,
-                                 tolerance=SCORING_TOLERANCE)
+                                 tolerance=PROFILE_TOLERANCE)
                 return p_v, p_v.solve(errors=False)
             cur_ir, fit, prob, n_geo = profile_geometry(H, cur_ir, b.lighting, solve_on, fit, prob)
             k += n_geo

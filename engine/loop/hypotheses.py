@@ -187,7 +187,7 @@ PLATE_GAPS_MM = (5.0, 20.0, 45.0, 80.0, 130.0)
 #: the cavity's inside (the ceiling over its plate), profiled: these fractions of the declared
 #: ceiling reflectance
 INTERIOR_SCALES = (0.0, 0.5, 1.0)
-#: distances (mm) from the lamp axis to a hypothesised mirror above it, profiled
+#: distances (mm) from the lamp axis to a hypothesised mirror above or behind it, profiled
 MIRROR_DISTANCES_MM = (20.0, 35.0, 60.0, 100.0)
 #: reflectances of a surface hypothesised to differ from its declared material, profiled
 SURFACE_REFLECTANCES = (0.03, 0.15, 0.35, 0.6, 0.85)
@@ -885,10 +885,15 @@ def filter_basis_on_knots(inner_nm) -> np.ndarray:
 
 
 class MirrorHypothesis(Hypothesis):
+    """A plane mirror with each lamp that is on: *above* it facing down (a luminaire's
+    reflector) or *behind* it, between the lamp and the nearest wall across its axis, facing the
+    room (the prism mirrors behind a light booth's tubes).  The placement is a categorical
+    profiled property, then the distance from the lamp's axis; the reflectance is fitted."""
+
     id = "mirror"
     effect = "reflector"
     channel = "spatial"
-    summary = "a mirror above the lamps, facing down"
+    summary = "a mirror with the lamps, above or behind them"
 
     @classmethod
     def _lamps(cls, ir, lighting):
@@ -908,52 +913,109 @@ class MirrorHypothesis(Hypothesis):
         return None
 
     @classmethod
-    def _grid(cls, ir, lighting) -> tuple[float, ...]:
-        """Mirror distances that fit between every lamp's body and the ceiling."""
+    def _behind(cls, ir, lp) -> tuple[tuple[float, float, float], float]:
+        """The normal of a mirror behind ``lp`` (from the nearest wall across its axis toward the
+        lamp) and the room between the lamp's axis and that wall (mm)."""
+        x0, x1, y0, y1 = _floor_bounds_mm(ir)
+        p = np.asarray(lp.position_mm, float)
+        ax = np.abs(np.asarray(lp.axis, float)) if lp.kind == "tube" else np.zeros(3)
+        walls = []   # (room, normal): the wall at +y is behind a lamp whose mirror faces −y
+        if ax[0] < 0.9:
+            walls += [(x1 - p[0], (-1.0, 0.0, 0.0)), (p[0] - x0, (1.0, 0.0, 0.0))]
+        if ax[1] < 0.9:
+            walls.append((y1 - p[1], (0.0, -1.0, 0.0)))
+            if not ir.interior.open_front:
+                walls.append((p[1] - y0, (0.0, 1.0, 0.0)))
+        if not walls:
+            return (0.0, 0.0, -1.0), 0.0
+        room, n = min(walls)
+        return n, float(room)
+
+    @classmethod
+    def _grid(cls, ir, lighting, placement: str = "above") -> tuple[float, ...]:
+        """Mirror distances that fit between every lamp's body and the ceiling (above) or the wall
+        behind it (behind)."""
         lamps = cls._lamps(ir, lighting)
-        room = min(float(ir.interior.height_mm) - float(lp.position_mm[2]) for lp in lamps) - 1.0
+        if placement == "above":
+            room = min(float(ir.interior.height_mm) - float(lp.position_mm[2]) for lp in lamps) - 1.0
+        else:
+            room = min(cls._behind(ir, lp)[1] for lp in lamps) - 1.0
         r = max(float(lp.radius_mm) for lp in lamps)
         return tuple(d for d in MIRROR_DISTANCES_MM if r + 2.0 < d <= room)
 
     @classmethod
-    def augment(cls, ir, lighting, known_groups):
+    def _mirrors(cls, ir, lighting, placement: str, distance_mm: float):
+        """``ir`` with the hypothesised mirrors: one reflector per direction they face."""
         from lbscene.engine.scene.ir import IRReflector, IRSpectrum
 
+        lamps = cls._lamps(ir, lighting)
+        normals = {lp.id: ((0.0, 0.0, -1.0) if placement == "above" else cls._behind(ir, lp)[0]) for lp in lamps}
+        ids: dict[tuple, str] = {}
+        for n in normals.values():
+            ids.setdefault(n, FITTED_MIRROR_ID if not ids else f"{FITTED_MIRROR_ID}_{len(ids) + 1}")
+        mine = {k: v for k, v in ir.reflectors.items() if not k.startswith(FITTED_MIRROR_ID)}
+        unit = IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid)
+        refl = {rid: IRReflector(id=rid, type="plane", reflectance=unit, distance_mm=float(distance_mm),
+                                 normal=n, width_mm=MIRROR_WIDTH_MM) for n, rid in ids.items()}
+        lamps_ = tuple(lp.model_copy(update={"reflector": ids[normals[lp.id]]}) if lp.id in normals else lp
+                       for lp in ir.lamps)
+        return ir.model_copy(update={"reflectors": {**mine, **refl}, "lamps": lamps_})
+
+    @classmethod
+    def augment(cls, ir, lighting, known_groups):
         grid = cls._grid(ir, lighting)
         d0 = grid[min(1, len(grid) - 1)] if grid else max(float(lp.radius_mm) for lp in cls._lamps(ir, lighting)) + 5
-        refl = IRReflector(id=FITTED_MIRROR_ID, type="plane", reflectance=IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid),
-                           distance_mm=d0, normal=(0.0, 0.0, -1.0), width_mm=MIRROR_WIDTH_MM)
-        ids = {lp.id for lp in cls._lamps(ir, lighting)}
-        lamps = tuple(lp.model_copy(update={"reflector": FITTED_MIRROR_ID}) if lp.id in ids else lp for lp in ir.lamps)
-        aug = ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: refl}, "lamps": lamps})
+        aug = cls._mirrors(ir, lighting, "above", d0)
         return aug, {"reflector": {}}, [FreeParameter("effect.reflector.reflectance_scale", (0.05, 1.0), 0.8)]
 
     @classmethod
     def geometry(cls, ir, lighting):
-        grid = cls._grid(ir, lighting)
-        if len(grid) < 3:
+        above = cls._grid(ir, lighting, "above")
+        behind = cls._grid(ir, lighting, "behind")
+        both = tuple(d for d in above if d in behind)
+        if len(both) >= 3:
+            # where it is, first: it decides what the distance means
+            return [GeometryParameter("behind", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
+                    GeometryParameter("distance_mm", both, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
+                                      (both[0], both[-1]))]
+        if len(above) < 3:
             return []
-        return [GeometryParameter("distance_mm", grid, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
-                                  (grid[0], grid[-1]))]
+        return [GeometryParameter("distance_mm", above, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
+                                  (above[0], above[-1]))]
 
     @classmethod
     def regeometry(cls, ir, lighting, values):
-        r = ir.reflectors[FITTED_MIRROR_ID].model_copy(update={"distance_mm": values["distance_mm"]})
-        return ir.model_copy(update={"reflectors": {**ir.reflectors, FITTED_MIRROR_ID: r}})
+        placement = "behind" if values.get("behind", 0.0) >= 0.5 else "above"
+        return cls._mirrors(ir, lighting, placement, values["distance_mm"])
 
     @classmethod
     def hardware_yaml(cls, ir, fit):
-        r = ir.reflectors[FITTED_MIRROR_ID]
         rho = fit.values.get("effect.reflector.reflectance_scale", 0.8)
         se = fit.stderr.get("effect.reflector.reflectance_scale")
-        d, dse = _geo(fit, cls.id, "distance_mm", r.distance_mm)
-        lamps = [lp.id for lp in ir.lamps if lp.reflector == FITTED_MIRROR_ID]
-        return (f"reflectors:   # hypothesis: {cls.summary}; width assumed, distance and reflectance fitted\n"
-                f"  {FITTED_MIRROR_ID}: {{type: plane, reflectance: {{type: constant, value: {rho:.3f}}}, "
-                f"distance_mm: {_g(r.distance_mm)}, normal: [0, 0, -1], width_mm: {_g(r.width_mm)}}}"
-                + (f"   # reflectance ± {_g(se)};" if se else "   #") + _pm(d, dse, " mm").replace("   #", " distance", 1)
-                + "\nlamps:   # the lamps that are on get the mirror (merged by id)\n"
-                + "".join(f"  - {{id: {i}, reflector: {FITTED_MIRROR_ID}}}\n" for i in lamps))
+        mirrors = {k: r for k, r in ir.reflectors.items() if k.startswith(FITTED_MIRROR_ID)}
+        first = mirrors[FITTED_MIRROR_ID]
+        d, dse = _geo(fit, cls.id, "distance_mm", first.distance_mm)
+        behind = _geo(fit, cls.id, "behind", 0.0)[0] >= 0.5
+        choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(cls.id, {}).get("behind")
+        where = "behind the lamps, facing the room" if behind else "above the lamps, facing down"
+        why = ""
+        if choice and len(choice) == 2:
+            dchi = abs(choice[0.0] - choice[1.0])
+            why = (f"; {'behind' if behind else 'above'} fits better by Δχ² = {dchi:.3g}" if dchi >= TYPE_DCHI2
+                   else f"; above and behind fit alike (Δχ² = {dchi:.2g}): the placement is not identified")
+        out = (f"reflectors:   # hypothesis: a mirror {where}; width assumed, distance and reflectance "
+               f"fitted{why}\n")
+        for rid, r in mirrors.items():
+            n = r.normal
+            out += (f"  {rid}: {{type: plane, reflectance: {{type: constant, value: {rho:.3f}}}, "
+                    f"distance_mm: {_g(r.distance_mm)}, normal: [{_g(n[0])}, {_g(n[1])}, {_g(n[2])}], "
+                    f"width_mm: {_g(r.width_mm)}}}"
+                    + (f"   # reflectance ± {_g(se)};" if se else "   #")
+                    + _pm(d, dse, " mm").replace("   #", " distance", 1) + "\n")
+        out += "lamps:   # the lamps that are on get the mirror (merged by id)\n"
+        out += "".join(f"  - {{id: {lp.id}, reflector: {lp.reflector}}}\n" for lp in ir.lamps
+                       if lp.reflector in mirrors)
+        return out
 
 
 class SurfaceReflectanceHypothesis(Hypothesis):

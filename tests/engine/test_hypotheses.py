@@ -372,3 +372,39 @@ def test_two_properties_on_a_ridge_are_an_unidentified_combination():
     assert "hypothesis.toy.gap_mm" not in fit.stderr
     (olo, ohi), (glo, ghi) = j["range"]["opening_v_mm"], j["range"]["gap_mm"]
     assert (olo, ohi) == pytest.approx((150.0, 170.0)) and (glo, ghi) == pytest.approx((20.0, 24.0))
+
+
+def test_a_mirror_behind_tubes_faces_the_room_from_the_wall_nearest_each_tube(tmp_path):
+    """The mirror hypothesis' other placement: behind each tube, between it and the nearest wall
+    across its axis (an open front is no wall), one reflector per direction; its YAML merged into
+    the booth compiles to that hardware."""
+    from lbscene.engine.scene.compile import compile_booth
+
+    src = DATA / "validation" / "walls-05"
+    ir = compile_booth(src / "booth.yaml")
+    aug, _, _ = MirrorHypothesis.augment(ir, "L", [])
+    names = [p.name for p in MirrorHypothesis.geometry(aug, "L")]
+    assert names == ["behind", "distance_mm"]
+    # tubes along x at y = ±110 mm in a box 600 mm deep with its front open: both mirrors are
+    # toward the rear wall, facing −y
+    out = MirrorHypothesis.regeometry(aug, "L", {"behind": 1.0, "distance_mm": 35.0})
+    assert {k: (r.normal, r.distance_mm) for k, r in out.reflectors.items()} == {
+        "fitted_mirror": ((0.0, -1.0, 0.0), 35.0)}
+    # tubes along y near the left and right walls: one mirror each side, facing the room
+    tubes = tuple(lp.model_copy(update={"axis": (0.0, 1.0, 0.0), "position_mm": (x, 0.0, 620.0)})
+                  for lp, x in zip(ir.lamps, (-420.0, 380.0)))
+    side = ir.model_copy(update={"lamps": tubes})
+    aug2, _, _ = MirrorHypothesis.augment(side, "L", [])
+    out2 = MirrorHypothesis.regeometry(aug2, "L", {"behind": 1.0, "distance_mm": 60.0})
+    by_lamp = {lp.id: out2.reflectors[lp.reflector].normal for lp in out2.lamps}
+    assert by_lamp == {tubes[0].id: (1.0, 0.0, 0.0), tubes[1].id: (-1.0, 0.0, 0.0)}
+    fit = _fake_fit({"effect.reflector.reflectance_scale": 0.6})
+    text = MirrorHypothesis.hardware_yaml(out2, fit)
+    assert text.startswith("reflectors:   # hypothesis: a mirror above the lamps, facing down;")  # no profile ran
+    booth = tmp_path / "b"
+    shutil.copytree(src, booth)
+    f = booth / "booth.yaml"
+    f.write_text(paste_hardware(f.read_text(), text + "effects:\n  interreflection: {}\n  reflector: {}\n"))
+    merged = compile_booth(f)
+    assert {r.normal for k, r in merged.reflectors.items() if k.startswith("fitted_mirror")} == {
+        (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)}

@@ -6,8 +6,8 @@ other sizes, lamp layouts and plate heights than the validation scenes, each wit
 booth file handed to the diagnosis does not declare — a black luminaire cavity (its occluders
 deleted and the ceiling declared in the walls' grey), a ceiling darker than declared, walls
 lighter than declared, a rough plate (deleted), an opal plate (deleted), a plane mirror above each
-tube (deleted).  As in ``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused),
-1 % seeded meter noise is added and ``compare`` runs on the edited booth.
+tube (deleted), a vertical mirror behind each of two tubes along the side walls (deleted).  As in
+``tests/engine/test_diagnosis_on_truth.py`` (whose helpers are reused), 1 % seeded meter noise is added and ``compare`` runs on the edited booth.
 
 Every case states the verdicts the data allow; the truth must be in the verdict (named, or one
 of a tie).  The hardware YAML of the truth's explanation, merged into the booth file
@@ -133,9 +133,24 @@ CASES = [
     Case("mirror-a3-known", "mirror-above", "a3", _MIRROR, True, "reflector",
          ("missing:reflector", "ambiguous:reflector"), slow=True),
     Case("mirror-floor-fitted", "mirror-above", "floor", _MIRROR, False, "reflector",
-         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True,
+         gap="as mirror-floor-known: the fitted mirror (above the lamps, 20 mm) leaves RMSE 1.3 % "
+             "at 1 % noise and the verdict is 'unexplained'"),
     Case("mirror-a3-fitted", "mirror-above", "a3", _MIRROR, False, "reflector",
          ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
+    # a vertical mirror behind each of two tubes along the side walls, facing the room (deleted):
+    # the mirror's placement (above or behind the lamps) is fitted too
+    Case("mirror-sides-a3-known", "mirror-sides", "a3", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True),
+    Case("mirror-sides-floor-known", "mirror-sides", "floor", _MIRROR, True, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True),
+    Case("mirror-sides-a3-fitted", "mirror-sides", "a3", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector", "none"), slow=True),
+    Case("mirror-sides-floor-fitted", "mirror-sides", "floor", _MIRROR, False, "reflector",
+         ("missing:reflector", "ambiguous:reflector"), slow=True,
+         gap="the booth with its mirrors declared is 1.6 % RMS off this truth on the floor (1.7 % on "
+             "the A3 sheet; the same room without mirrors 0.2 %, the mirrors in a black box 0.8 %): "
+             "with the output fitted no explanation reaches the noise, the verdict is 'unexplained'"),
 ]
 
 

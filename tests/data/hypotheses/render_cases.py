@@ -2,7 +2,7 @@
 
 Each scene is a booth folder whose ``booth.yaml`` declares the hardware the diagnosis will be
 handed *without* (a luminaire cavity, a ceiling of another reflectance, walls lighter than
-declared, a rough plate, an opal plate, mirrors above the lamps) and whose
+declared, a rough plate, an opal plate, mirrors above the lamps or behind them) and whose
 ``effects:`` lists exactly the physics its truth includes.  The tests
 (``tests/engine/test_hypotheses_on_truth.py``) and the table
 (``benchmarks/hypothesis_truth_table.py``) read ``truth-a3.csv`` (the 55-point A3 sheet) and
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("cavity-wide", "ceiling-dark", "rough-plate", "mirror-above", "walls-light", "opal-plate")
+SCENES = ("cavity-wide", "ceiling-dark", "rough-plate", "mirror-above", "walls-light", "opal-plate", "mirror-sides")
 GRIDS = ("a3", "floor")
 #: grids rendered per scene (all of them unless listed)
 SCENE_GRIDS: dict[str, tuple[str, ...]] = {}
