@@ -1046,7 +1046,12 @@ class RadiosityTransport:
             return None
         return int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12))))
 
-    def _lu(self, key, j, u):
+    def _lu(self, key, j, u) -> "_RadiositySolver":
+        """A solver of :math:`(I - \\mathrm{diag}(ρ) F_u)` for band class ``u`` (its reflectances
+        and plate transmittance): the LU factors of the matrix, or — when an earlier class with
+        the same form factors differs from it in the reflectance of fewer than half the patches
+        (a fit moving the ceiling's or the walls' reflectance) — that class's factors with the
+        difference as a low-rank update (:class:`_LowRankSolver`), exact to rounding."""
         from scipy.linalg import lu_factor
 
         store = self.ctx.cache.setdefault("_rad_lu", {})
@@ -1054,10 +1059,28 @@ class RadiosityTransport:
         if k not in store:
             P = len(self.patches)
             r = u[:P]
-            Fu = self._F_band(u[P] if u.size > P else None)
+            T = u[P] if u.size > P else None
+            Fu = self._F_band(T)
+            # the factored classes an update may start from: the last few, whatever their form
+            # factors (each holds an n × n factorisation: bounded apart from the store)
+            bases = self.ctx.cache.setdefault("_rad_lu_bases", {})
+            bk = (self._patch_key, self._body_digest.tobytes(), None if T is None else float(T))
+            base = None
+            for (bk_, _), b in bases.items():
+                if bk_ != bk:
+                    continue
+                n_diff = int(np.count_nonzero(b.r != r))
+                if n_diff <= LOW_RANK_MAX_FRACTION * P and (base is None or n_diff < base[1]):
+                    base = (b, n_diff)
             if len(store) >= 64:
                 store.pop(next(iter(store)))
-            store[k] = lu_factor(np.eye(P) - r[:, None] * Fu)
+            if base is not None:
+                store[k] = _LowRankSolver(base[0], r, Fu)
+            else:
+                store[k] = _LUSolver(lu_factor(np.eye(P) - r[:, None] * Fu), r)
+                if len(bases) >= LOW_RANK_BASES:
+                    bases.pop(next(iter(bases)))
+                bases[(bk, k)] = store[k]
         return store[k]
 
     def _solution_params(self) -> tuple:
@@ -1097,7 +1120,6 @@ class RadiosityTransport:
         return True
 
     def _solve_now(self) -> np.ndarray:
-        from scipy.linalg import lu_solve
 
         terms, E0 = self._first_order()
         uniq, inv, key = self._band_classes()
@@ -1115,7 +1137,7 @@ class RadiosityTransport:
                     acc += x
                 sol.append(acc)
             else:
-                sol.append(lu_solve(self._lu(key, j, u), r[:, None] * E0))
+                sol.append(self._lu(key, j, u).solve(r[:, None] * E0))
         return np.stack([sol[i] for i in inv])
 
     def _in_front(self, P) -> np.ndarray:
@@ -1202,8 +1224,6 @@ class RadiosityTransport:
         evaluation is a few small matrix products (the solve is done once, transposed, with
         the receivers as right-hand sides).
         """
-        from scipy.linalg import lu_solve
-
         from lbscene.engine.files.disk_cache import array_key
 
         uniq, inv, key = self._band_classes()
@@ -1228,7 +1248,7 @@ class RadiosityTransport:
                     acc += y * r[None, :]
                 ops.append(acc)
             else:
-                x = lu_solve(self._lu(key, j, u), Gj.T, trans=1)        # (I − ρF)⁻ᵀ Gᵀ
+                x = self._lu(key, j, u).solve(Gj.T, trans=1)          # (I − ρF)⁻ᵀ Gᵀ
                 ops.append((r[:, None] * x).T)
         out = np.stack([ops[i] for i in inv])
         if len(store) >= 32:
@@ -1256,3 +1276,79 @@ class RadiosityTransport:
             ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
                      "indirect") for k, t in enumerate(terms)]
+
+
+#: the largest share of the patches whose reflectance may differ from an already factored band
+#: class for :class:`_LowRankSolver` to take its place
+LOW_RANK_MAX_FRACTION = 0.5
+#: factored band classes kept as starting points of low-rank updates (besides the solver store)
+LOW_RANK_BASES = 16
+
+
+class _LUSolver:
+    """:math:`A = I - \\mathrm{diag}(r) F` by its LU factors."""
+
+    def __init__(self, lu, r):
+        self.lu, self.r = lu, np.asarray(r, float)
+        self._updates = {}           # patch sets S → (A⁻¹ E_S, A⁻ᵀ F_Sᵀ), for _LowRankSolver
+
+    def solve(self, b, trans: int = 0):
+        from scipy.linalg import lu_solve
+
+        return lu_solve(self.lu, b, trans=trans)
+
+
+class _LowRankSolver:
+    """:math:`A' = I - \\mathrm{diag}(r') F` from the factors of :math:`A = I - \\mathrm{diag}(r) F`
+    (``base``, a :class:`_LUSolver`) where :math:`r'` differs from :math:`r` on the patches
+    :math:`S` only (:math:`k = |S|`, :math:`d = r'_S - r_S`): :math:`A' = A - E_S D F_S` with
+    :math:`E_S` the identity's columns :math:`S`, :math:`D = \\mathrm{diag}(d)`, :math:`F_S` the
+    rows :math:`S` of :math:`F`.  By the Woodbury identity
+
+    .. math::
+
+        A'^{-1} b = y + P (I_k - D F_S P)^{-1} D F_S y, \\quad y = A^{-1} b,\\ P = A^{-1} E_S,
+
+        A'^{-T} b = y + Q (I_k - D Q_S)^{-1} D y_S, \\quad y = A^{-T} b,\\ Q = A^{-T} F_S^T,
+
+    with :math:`Q_S` the rows :math:`S` of :math:`Q`.  :math:`P` and :math:`Q` depend on
+    :math:`S` only (kept with the base): a fit that moves one surface's reflectance pays
+    :math:`k` solves once, then a :math:`k \\times k` system per step, instead of a new LU of
+    the :math:`n \\times n` matrix each time (the SpectraLight's ceiling: 25 factorisations per
+    refit)."""
+
+    def __init__(self, base: _LUSolver, r, F):
+        self.base = base
+        self.r = np.asarray(r, float)
+        S = np.nonzero(self.r != base.r)[0]
+        self.S = S
+        self.d = (self.r - base.r)[S]
+        self.F_S = F[S]
+        self._skey = S.tobytes()
+        self._small = {}
+
+    def _PQ(self, trans: int):
+        hit = self.base._updates.setdefault(self._skey, [None, None])
+        if hit[trans] is None:
+            if trans:
+                hit[1] = self.base.solve(self.F_S.T, trans=1)               # (n, k)
+            else:
+                E = np.zeros((len(self.base.r), self.S.size))
+                E[self.S, np.arange(self.S.size)] = 1.0
+                hit[0] = self.base.solve(E)                                 # (n, k)
+        return hit[trans]
+
+    def solve(self, b, trans: int = 0):
+        from scipy.linalg import lu_factor, lu_solve
+
+        y = self.base.solve(b, trans=trans)
+        if not self.S.size:
+            return y
+        W = self._PQ(trans)
+        if trans not in self._small:
+            k = self.S.size
+            M = np.eye(k) - self.d[:, None] * (W[self.S] if trans else self.F_S @ W)
+            self._small[trans] = lu_factor(M)
+        rhs = self.d[:, None] * (y[self.S] if trans else self.F_S @ y) if y.ndim == 2 else (
+            self.d * (y[self.S] if trans else self.F_S @ y))
+        return y + W @ lu_solve(self._small[trans], rhs)

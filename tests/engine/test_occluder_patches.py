@@ -101,3 +101,62 @@ def test_a_plate_on_a_mesh_face_leaves_one_face_each_way(mesh):
     frame = 660 * 340 - 640 * 300
     assert p.areas_mm2[on_plate & down].sum() == pytest.approx(frame)
     assert p.areas_mm2[on_plate & ~down].sum() == pytest.approx(frame)
+
+
+def test_the_low_rank_update_of_a_factored_radiosity_matrix_solves_the_moved_one():
+    """(I − diag(r′) F) x = b and its transpose, solved from the factors of I − diag(r) F with r′
+    differing on a third of the patches (Woodbury), equal numpy's dense solves."""
+    from scipy.linalg import lu_factor
+
+    from lbscene.engine.light.radiosity import _LowRankSolver, _LUSolver
+
+    rng = np.random.default_rng(7)
+    n = 90
+    F = rng.random((n, n))
+    np.fill_diagonal(F, 0.0)
+    F *= 0.97 / F.sum(axis=1, keepdims=True)          # rows of a closed room's form factors
+    r = np.full(n, 0.85)
+    r2 = r.copy()
+    moved = rng.choice(n, n // 3, replace=False)
+    r2[moved] = rng.uniform(0.05, 0.95, moved.size)
+    base = _LUSolver(lu_factor(np.eye(n) - r[:, None] * F), r)
+    upd = _LowRankSolver(base, r2, F)
+    assert upd.S.size == moved.size
+    A2 = np.eye(n) - r2[:, None] * F
+    b = rng.random((n, 3))
+    assert np.allclose(upd.solve(b), np.linalg.solve(A2, b), rtol=1e-11, atol=1e-13)
+    assert np.allclose(upd.solve(b, trans=1), np.linalg.solve(A2.T, b), rtol=1e-11, atol=1e-13)
+    assert np.allclose(upd.solve(b[:, 0]), np.linalg.solve(A2, b[:, 0]), rtol=1e-11, atol=1e-13)
+    # the same patch set again reuses the k solves kept with the base
+    again = _LowRankSolver(base, np.where(np.isin(np.arange(n), moved), 0.5, r), F)
+    assert np.allclose(again.solve(b, trans=1), np.linalg.solve((np.eye(n) - again.r[:, None] * F).T, b),
+                       rtol=1e-11, atol=1e-13)
+    assert len(base._updates) == 1
+
+
+@pytest.mark.slow
+def test_a_surface_reflectance_moved_by_a_fit_is_solved_as_a_low_rank_update():
+    """A fit moving the walls' reflectance in a bright booth: the receivers' inter-reflected light
+    solved from the factors of an earlier step (a low-rank update) equals a fresh solve of the
+    moved booth."""
+    from lbscene.engine.light.forward import ForwardModel
+
+    # a 0.85 ceiling: the series converges slowly, the transport factors its matrix
+    ir = compile_booth(Path(__file__).resolve().parents[1] / "data" / "validation" / "ceiling-85" / "booth.yaml")
+    x, y = np.meshgrid(np.linspace(-300, 300, 8), np.linspace(-200, 200, 5))
+    P = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+
+    def lux(scales, cache):
+        eff = {**{k: dict(v) for k, v in ir.effects.items()}, "surface_reflectance": scales}
+        pred = ForwardModel(ir, "L", effects=eff, cache=cache).predict(P, N, np.ones(len(P), bool))
+        return sum(pred.lux_by_group().values())
+
+    shared: dict = {}
+    lux({"ceiling_scale": 1.0}, shared)              # solved once, as declared
+    # from then on the receivers' operators are solved (transposed) for each reflectance set
+    # (the walls: a small share of the patches, most of them on the ceiling near the tubes)
+    for scales in ({"walls_scale": 0.8}, {"walls_scale": 0.9}, {"walls_scale": 1.05}):
+        assert np.allclose(lux(scales, shared), lux(scales, {}), rtol=1e-10, atol=0), scales
+    kinds = {type(v).__name__ for v in shared["_rad_lu"].values()}
+    assert kinds == {"_LUSolver", "_LowRankSolver"}, kinds
