@@ -1046,7 +1046,7 @@ class RadiosityTransport:
             return None
         return int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12))))
 
-    def _lu(self, key, j, u) -> "_RadiositySolver":
+    def _lu(self, key, j, u) -> "_LUSolver | _LowRankSolver":
         """A solver of :math:`(I - \\mathrm{diag}(ρ) F_u)` for band class ``u`` (its reflectances
         and plate transmittance): the LU factors of the matrix, or — when an earlier class with
         the same form factors differs from it in the reflectance of fewer than half the patches
@@ -1061,8 +1061,8 @@ class RadiosityTransport:
             r = u[:P]
             T = u[P] if u.size > P else None
             Fu = self._F_band(T)
-            # the factored classes an update may start from: the last few, whatever their form
-            # factors (each holds an n × n factorisation: bounded apart from the store)
+            # the last few factored classes an update may start from, those with these form
+            # factors among them (each holds an n × n factorisation: bounded apart from the store)
             bases = self.ctx.cache.setdefault("_rad_lu_bases", {})
             bk = (self._patch_key, self._body_digest.tobytes(), None if T is None else float(T))
             base = None
@@ -1120,7 +1120,6 @@ class RadiosityTransport:
         return True
 
     def _solve_now(self) -> np.ndarray:
-
         terms, E0 = self._first_order()
         uniq, inv, key = self._band_classes()
         P = len(self.patches)
@@ -1349,6 +1348,6 @@ class _LowRankSolver:
             k = self.S.size
             M = np.eye(k) - self.d[:, None] * (W[self.S] if trans else self.F_S @ W)
             self._small[trans] = lu_factor(M)
-        rhs = self.d[:, None] * (y[self.S] if trans else self.F_S @ y) if y.ndim == 2 else (
-            self.d * (y[self.S] if trans else self.F_S @ y))
+        v = y[self.S] if trans else self.F_S @ y
+        rhs = (self.d[:, None] if v.ndim == 2 else self.d) * v
         return y + W @ lu_solve(self._small[trans], rhs)

@@ -503,6 +503,19 @@ def _pm(value: float, se: float | None, unit: str = "") -> str:
     return f"   # ± {_g(se)}{unit} (profiled)"
 
 
+def _choice_note(fit, hid: str, name: str, chosen: str, both: str, what: str) -> str:
+    """The YAML comment's clause on a categorical profiled property ``name`` of hypothesis
+    ``hid`` (two choices): ``chosen`` fits better by Δχ², or ``both`` fit alike and the ``what``
+    is not identified (Δχ² under :data:`TYPE_DCHI2`); '' when it was not profiled."""
+    choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(hid, {}).get(name)
+    if not choice or len(choice) != 2:
+        return ""
+    dchi = abs(choice[0.0] - choice[1.0])
+    if dchi >= TYPE_DCHI2:
+        return f"; {chosen} fits better by Δχ² = {dchi:.3g}"
+    return f"; {both} fit alike (Δχ² = {dchi:.2g}): the {what} is not identified"
+
+
 def paste_hardware(booth_text: str, snippet: str) -> str:
     """The booth file with the diagnosis' snippet merged in.
 
@@ -691,13 +704,8 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         fd = fit.values.get("effect.diffuser.diffuse_fraction", 0.5)
         se = fit.stderr.get("effect.diffuser.diffuse_fraction")
         t = fit.values.get("effect.diffuser.transmittance_scale")
-        choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(cls.id, {}).get("rough")
         kind = "rough glass" if rough else "opal"
-        why = ""
-        if choice and len(choice) == 2:
-            dchi = abs(choice[0.0] - choice[1.0])
-            why = (f"; {kind} fits better by Δχ² = {dchi:.3g}" if dchi >= TYPE_DCHI2
-                   else f"; opal and rough glass fit alike (Δχ² = {dchi:.2g}): the type is not identified")
+        why = _choice_note(fit, cls.id, "rough", kind, "opal and rough glass", "type")
         lines = [f"diffuser:   # hypothesis: {cls.summary}, {kind}; extent assumed, height and "
                  f"scattering fitted{why}",
                  f"  z_mm: {_g(d.z_mm)}" + _pm(d.z_mm, gse, " mm"), f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
@@ -995,14 +1003,11 @@ class MirrorHypothesis(Hypothesis):
         mirrors = {k: r for k, r in ir.reflectors.items() if k.startswith(FITTED_MIRROR_ID)}
         first = mirrors[FITTED_MIRROR_ID]
         d, dse = _geo(fit, cls.id, "distance_mm", first.distance_mm)
-        behind = _geo(fit, cls.id, "behind", 0.0)[0] >= 0.5
-        choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(cls.id, {}).get("behind")
+        # where the mirrors are is what the booth carries (the fit's choice built it)
+        behind = any(tuple(r.normal) != (0.0, 0.0, -1.0) for r in mirrors.values())
         where = "behind the lamps, facing the room" if behind else "above the lamps, facing down"
-        why = ""
-        if choice and len(choice) == 2:
-            dchi = abs(choice[0.0] - choice[1.0])
-            why = (f"; {'behind' if behind else 'above'} fits better by Δχ² = {dchi:.3g}" if dchi >= TYPE_DCHI2
-                   else f"; above and behind fit alike (Δχ² = {dchi:.2g}): the placement is not identified")
+        why = _choice_note(fit, cls.id, "behind", "behind" if behind else "above", "above and behind",
+                           "placement")
         out = (f"reflectors:   # hypothesis: a mirror {where}; width assumed, distance and reflectance "
                f"fitted{why}\n")
         for rid, r in mirrors.items():

@@ -400,7 +400,9 @@ def test_a_mirror_behind_tubes_faces_the_room_from_the_wall_nearest_each_tube(tm
     assert by_lamp == {tubes[0].id: (1.0, 0.0, 0.0), tubes[1].id: (-1.0, 0.0, 0.0)}
     fit = _fake_fit({"effect.reflector.reflectance_scale": 0.6})
     text = MirrorHypothesis.hardware_yaml(out2, fit)
-    assert text.startswith("reflectors:   # hypothesis: a mirror above the lamps, facing down;")  # no profile ran
+    # the comment says where the booth's mirrors are (no profile ran: no choice to report)
+    assert text.startswith("reflectors:   # hypothesis: a mirror behind the lamps, facing the room; width "
+                           "assumed, distance and reflectance fitted\n")
     booth = tmp_path / "b"
     shutil.copytree(src, booth)
     f = booth / "booth.yaml"
