@@ -573,8 +573,14 @@ class RadiosityTransport:
         # occluders cut the box's patches where they stand on it; with a material, they
         # reflect (both faces are patches), as the booth declares
         occ_key = _body_signature([(f"{o.id}:{o.material}", r) for o, r in occluders])
-        # the diffuser plate reflects from both faces: its faces are patches
-        plate = "diffuser" in ctx.effects and ir.diffuser is not None
+        # the diffuser plate reflects from both faces: a clear or rough plate specularly (its
+        # images in the inter-reflection, :mod:`.plate_mirror`), an opal one diffusely (its
+        # faces are patches)
+        has_plate = "diffuser" in ctx.effects and ir.diffuser is not None
+        from .plates import specular_plate
+
+        self._mirror = has_plate and specular_plate(ir, ctx.params("diffuser"))
+        plate = has_plate and not self._mirror
         key = ("patches", p.patch_size_mm, p.mesh_patch_size_mm, p.meshes, lit, occ_key, plate)
         if key not in ctx.cache:
             lamps = [lp for lp in ir.lamps if lp.id in lit]
@@ -638,6 +644,7 @@ class RadiosityTransport:
         self._B = None
         self._terms = None
         self._E0 = None
+        self._images = None
 
     # ------------------------------------------------------------------ form factors
     @property
@@ -1039,7 +1046,8 @@ class RadiosityTransport:
         """Jacobi sweeps for a 1e-9 relative residual when the series converges fast, else None."""
         P = len(self.patches)
         r = u[:P]
-        q = float(np.max(r * self.F.sum(axis=1)))        # bound on the spectral radius of ρF
+        F_sum = self.F.sum(axis=1) + (self.images[0].sum(axis=1) if self._mirror else 0.0)
+        q = float(np.max(r * F_sum))                       # bound on the spectral radius of ρF
         if self.p.max_bounces > 0:
             return self.p.max_bounces - 1
         if q >= 1:
@@ -1160,9 +1168,47 @@ class RadiosityTransport:
         return np.where(S < 0, M * (-S) * T, M)
 
     def _F_band(self, T):
-        if T is None or self.cross_pp is None:
-            return self.F
-        return self._crossed(self.F, self.cross_pp, T)
+        F = self.F if T is None or self.cross_pp is None else self._crossed(self.F, self.cross_pp, T)
+        if self._mirror and T is not None:
+            F = F + self._reflected(*self.images, T)
+        return F
+
+    @property
+    def images(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(F', cos)`` (P, P): the form factors from each patch to the others' images in the
+        plate's faces, past bodies and meshes, and their lines' cosines with the plate's normal
+        (:func:`lbscene.engine.light.plate_mirror.patch_image_factors`; a specular plate only)."""
+        if self._images is None:
+            from .plate_mirror import patch_image_factors
+
+            d = self.ctx.ir.diffuser
+            ck = self._patch_key + ("plate_images", self._body_sig, d.z_mm, d.thickness_mm,
+                                    tuple(d.centre_mm), tuple(d.size_mm))
+            if ck not in self.ctx.cache:
+                from .plate_mirror import IMAGE_GATHER_POINTS, IMAGE_PAIR_POINTS
+
+                P = len(self.patches)
+                both = cached_array(
+                    "plate_image_factors", (self.patches.polys, self.patches.normals, self.blockers,
+                                            np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm])),
+                    self._body_sig + ("plate-images-1", IMAGE_PAIR_POINTS, IMAGE_GATHER_POINTS),
+                    lambda: np.stack(patch_image_factors(self.patches, self.ctx.ir, [b for _, b in self.bodies],
+                                                         self.blockers)),
+                    shape=(2, P, P))
+                self.ctx.cache[ck] = (both[0], both[1])
+            self._images = self.ctx.cache[ck]
+        return self._images
+
+    def _reflected(self, F_img, cos, T) -> np.ndarray:
+        """``F_img`` times the plate's directional reflectance :math:`R(θ)` at ``cos`` for the
+        declared transmittance ``T`` (one band class)."""
+        from .plates import plate_reflectance
+
+        out = np.zeros_like(F_img)
+        nz = F_img > 0
+        if nz.any():
+            out[nz] = F_img[nz] * plate_reflectance(self.ctx.ir, cos[nz], np.array([float(T)]))[:, 0]
+        return out
 
     # ------------------------------------------------------------------ receivers
     def patch_radiosity(self) -> np.ndarray:
@@ -1200,9 +1246,19 @@ class RadiosityTransport:
             return self._solve()
         return self._solve(compute=False)
 
-    def _gather_solution(self, G, P_rx) -> np.ndarray:
+    def _G_band(self, G, S_rx, img, T):
+        """The receivers' gather for one band class: ``G`` with the plate's line factors at
+        transmittance ``T`` and, for a specular plate, the patches' images (``img``: ``(G', cos)``
+        of :func:`lbscene.engine.light.plate_mirror.receiver_image_factors`) times :math:`R(θ)`."""
+        Gj = G if S_rx is None or T is None else self._crossed(G, S_rx, T)
+        if img is not None and T is not None:
+            Gj = Gj + self._reflected(img[0], img[1], T)
+        return Gj
+
+    def _gather_solution(self, G, P_rx, img=None) -> np.ndarray:
         """(K, M, B) inter-reflected light at the receivers from the patch radiosity:
-        :math:`G_b B_b` per band (G with the plate's line factors of the band's class)."""
+        :math:`G_b B_b` per band (G with the plate's line factors of the band's class, and the
+        patches' images in a specular plate, ``img``)."""
         uniq, inv, _ = self._band_classes()
         Pn = len(self.patches)
         S_rx = self._receiver_gather(G, P_rx)
@@ -1210,11 +1266,11 @@ class RadiosityTransport:
         out = np.empty((B.shape[2], len(G), B.shape[0]))
         for j, u in enumerate(uniq):
             bands = np.nonzero(inv == j)[0]
-            Gj = G if S_rx is None else self._crossed(G, S_rx, u[Pn])
+            Gj = self._G_band(G, S_rx, img, u[Pn] if u.size > Pn else None)
             out[:, :, bands] = np.einsum("mp,bpk->kmb", Gj, B[bands], optimize=True)
         return out
 
-    def _receiver_operators(self, G, P_rx) -> np.ndarray:
+    def _receiver_operators(self, G, P_rx, img=None) -> np.ndarray:
         """(B, M, P) operators R_b = G_b·(I − ρ_b F_b)⁻¹·diag(ρ_b): patch first-order light →
         inter-reflected light at the receivers.
 
@@ -1226,7 +1282,7 @@ class RadiosityTransport:
         from lbscene.engine.files.disk_cache import array_key
 
         uniq, inv, key = self._band_classes()
-        ck = key + (array_key(G, P_rx),)
+        ck = key + (array_key(G, P_rx, *(() if img is None else img)),)
         store = self.ctx.cache.setdefault("_rad_ops", {})
         hit = store.get(ck)
         if hit is not None:
@@ -1236,7 +1292,7 @@ class RadiosityTransport:
         ops = []
         for j, u in enumerate(uniq):
             r = u[:Pn]
-            Gj = G if self.plate_T is None else self._crossed(G, S_rx, u[Pn])
+            Gj = self._G_band(G, S_rx, img, u[Pn] if u.size > Pn else None)
             n_it = self._neumann_terms(u)
             if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
                 A = r[:, None] * self._F_band(u[Pn] if u.size > Pn else None)
@@ -1255,6 +1311,23 @@ class RadiosityTransport:
         store[ck] = out
         return out
 
+    def _receiver_images(self, P, N, meter):
+        """``(G', cos)`` (M, P): the receivers' view of the patches' images in a specular plate
+        (:func:`lbscene.engine.light.plate_mirror.receiver_image_factors`, with the meter's
+        response), memoised per receiver set."""
+        from .plate_mirror import receiver_image_factors
+
+        m = np.broadcast_to(np.asarray(meter, bool), (len(P),))
+        d = self.ctx.ir.diffuser
+        return self.ctx.memo(
+            "plate_images_rx", (P, N, m, self.patches.polys, self._body_digest,
+                                np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm])),
+            lambda: receiver_image_factors(
+                self.patches, self.ctx.ir, P, N,
+                lambda polys, normals, rows: self.model.lambertian_gather(polys, normals, P[rows], N[rows], m[rows]),
+                [b for _, b in self.bodies], self.blockers),
+            limit=32)
+
     def terms(self, P, N, meter):
         from .forward import Term
 
@@ -1268,10 +1341,11 @@ class RadiosityTransport:
             G = G * Vb
         if self._plate_faces is not None:
             G = np.where(self._plate_faces[None, :] & ~self._in_front(P), 0.0, G)
+        img = self._receiver_images(P, N, meter) if self._mirror else None
         if self._use_solution(P):
-            ind = self._gather_solution(G, P)
+            ind = self._gather_solution(G, P, img)
         else:
-            R = self._receiver_operators(G, P)
+            R = self._receiver_operators(G, P, img)
             ind = np.einsum("bmp,pk->kmb", R, E0, optimize=True)
         return [Term(t.group, t.lamp_id, t.key + ("indirect",), t.spectrum_1nm, None, ind[k],
                      "indirect") for k, t in enumerate(terms)]

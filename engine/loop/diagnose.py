@@ -575,14 +575,21 @@ def _chi2_parts(fit: FitResult, noise: NoiseModel) -> tuple[float, float]:
     return level, float(sp @ sp)
 
 
+def _hypothesis(item: str):
+    """The :class:`~lbscene.engine.loop.hypotheses.Hypothesis` a candidate ``hypothesis:<id>``
+    names, or None for an effect of the catalog (or an unknown id)."""
+    return HYPOTHESES.get(item[len(HYPOTHESIS_PREFIX):]) if item.startswith(HYPOTHESIS_PREFIX) else None
+
+
 def _channels(item: str) -> tuple[str, ...]:
     """The residuals an explanation may claim: ``spectral`` for effects and hypotheses that change
     spectra only, ``spatial`` for geometry; an effect lists both in its ``channels`` attribute
     when it does both (a diffuser: a plate with a spectral transmittance)."""
     from lbscene.engine.light.effects.registry import get_effect
 
-    if item.startswith(HYPOTHESIS_PREFIX):
-        return (HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].channel,)
+    H = _hypothesis(item)
+    if H is not None:
+        return (H.channel,)
     cls = get_effect(item)
     ch = getattr(cls, "channels", None)
     if ch:
@@ -719,8 +726,8 @@ def _configure(b: _Base, items: tuple[str, ...]):
     n_params: dict[str, int] = {}
     for it in items:
         before = len(free)
-        if it.startswith(HYPOTHESIS_PREFIX):
-            H = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]]
+        H = _hypothesis(it)
+        if H is not None:
             hw.append(H)
             if H.channel == "spectral":
                 post.append((it, H))
@@ -752,8 +759,9 @@ def _shown_params(items, eids, hw, fit: FitResult, free) -> tuple[dict, dict]:
     """The fitted parameters of a refit: ``(shown in the report, by effect)``."""
     by_effect = {}
     for it, eid in zip(items, eids):
-        if it.startswith(HYPOTHESIS_PREFIX):
-            by_effect[eid] = HYPOTHESES[it[len(HYPOTHESIS_PREFIX):]].effect_entry(fit)
+        H = _hypothesis(it)
+        if H is not None:
+            by_effect[eid] = H.effect_entry(fit)
         else:
             by_effect[eid] = {fp.name: fit.values[fp.target] for fp in free
                               if fp.scope == "effect" and fp.ident == eid}
@@ -858,8 +866,7 @@ def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir, k: int
         k += n_params[it]
         fit = f2
     bic = fit.chi2 + k * b.logn
-    eids = tuple(HYPOTHESES[i[len(HYPOTHESIS_PREFIX):]].effect if i.startswith(HYPOTHESIS_PREFIX)
-                 else i for i in items)
+    eids = tuple(H.effect if (H := _hypothesis(i)) is not None else i for i in items)
     shown, by_effect = _shown_params(items, eids, hw, fit, free)
     parts = _chi2_parts(fit, b.noise)
     gain = (b.parts[0] - parts[0], b.parts[1] - parts[1])
@@ -886,14 +893,14 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> lis
     suspects = []
 
     def spatial_hardware(item):
-        H = HYPOTHESES.get(item[len(HYPOTHESIS_PREFIX):]) if item.startswith(HYPOTHESIS_PREFIX) else None
+        H = _hypothesis(item)
         return H is not None and H.hardware and H.channel == "spatial"
 
     # hardware with a geometry to profile last: the explanations before it may make its profile
     # moot (_cannot_rival)
     order = [i for i in todo if not spatial_hardware(i)] + [i for i in todo if spatial_hardware(i)]
     for k, item in enumerate(order):
-        if item.startswith(HYPOTHESIS_PREFIX) and HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]].hardware \
+        if (H := _hypothesis(item)) is not None and H.hardware \
                 and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
             continue
         if progress:

@@ -223,9 +223,9 @@ def test_a_fit_uses_the_operators_after_the_first_evaluation(tube_ir, monkeypatc
     orig_ops = radiosity.RadiosityTransport._receiver_operators
     orig_sol = radiosity.RadiosityTransport._gather_solution
     monkeypatch.setattr(radiosity.RadiosityTransport, "_receiver_operators",
-                        lambda self, G, P: routes.append("ops") or orig_ops(self, G, P))
+                        lambda self, G, P, *a: routes.append("ops") or orig_ops(self, G, P, *a))
     monkeypatch.setattr(radiosity.RadiosityTransport, "_gather_solution",
-                        lambda self, G, P: routes.append("solution") or orig_sol(self, G, P))
+                        lambda self, G, P, *a: routes.append("solution") or orig_sol(self, G, P, *a))
     lighting = next(iter(tube_ir.lighting))
     fm = ForwardModel(tube_ir, lighting)
     pts = _grid()

@@ -13,8 +13,10 @@ glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on 
 cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  A clear or rough plate
 reflects the lamps above it specularly: each lamp gets a mirror image under the plate's top face
 (``extra_emitters``), seen through the plate and past the lamp's body, times the plate's
-directional reflectance :math:`R(θ)` at the path's incidence (``plate_reflection: specular``; the
-inter-reflection's plate patches then re-emit none of the lamps' light).  The plate itself
+directional reflectance :math:`R(θ)` at the path's incidence (``plate_reflection: specular``); the
+inter-reflection then reflects the surfaces' light in the plate the same way, through their
+images (:mod:`lbscene.engine.light.plate_mirror`), where ``diffuse`` makes both faces Lambertian
+patches of the plate's hemispherical reflectance.  The plate itself
 (rectangle, transmittances) is :mod:`lbscene.engine.light.plates`.
 """
 
@@ -67,8 +69,8 @@ class DiffuserEffect(PhysicalEffect):
                                     description="Cell size of the re-emitting plate (diffuse part; "
                                                 "a rough plate's scattered light).")
         plate_reflection: Literal["specular", "diffuse"] = Field(
-            "specular", description="How a clear or rough plate's top face reflects the lamps' light: "
-                                    "'specular' (the lamps' mirror images in it, times its "
+            "specular", description="How a clear or rough plate reflects light: 'specular' (the lamps' "
+                                    "and the surfaces' mirror images in its faces, times its "
                                     "reflectance R(θ)), 'diffuse' (re-emitted by the inter-reflection's "
                                     "plate patches, Lambertian).  Opal plates reflect diffusely.")
         rough_transport: Literal["auto", "regular", "scattered"] = Field(
