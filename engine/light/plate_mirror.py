@@ -36,7 +36,7 @@ import numpy as np
 from .geometry import (Patches, bodies_block, pairs_near_bodies, polygon_form_factor, polygon_form_factor_pairs,
                        quad_centroids, quad_r2_points, quad_subpoints, segments_blocked)
 
-__all__ = ["plate_faces_mm", "image_polys", "patch_image_factors", "receiver_image_factors",
+__all__ = ["plate_faces_mm", "plate_geometry_key", "image_polys", "patch_image_factors", "receiver_image_factors",
            "IMAGE_PAIR_POINTS", "IMAGE_GATHER_POINTS"]
 
 #: matched point pairs per (patch, image) pair whose view may be cut by a body, a mesh or the
@@ -56,10 +56,23 @@ def plate_faces_mm(ir) -> tuple[tuple[float, float], tuple[float, float]]:
     return ((float(d.z_mm + d.thickness_mm / 2), 1.0), (float(d.z_mm - d.thickness_mm / 2), -1.0))
 
 
+def plate_geometry_key(ir) -> np.ndarray:
+    """What the images depend on of the plate, as one array (a cache key): its height, thickness,
+    centre and size (mm)."""
+    d = ir.diffuser
+    return np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm], float)
+
+
+def _mirrored(q: np.ndarray, z_mm: float) -> np.ndarray:
+    """Points ``q`` (..., 3) mirrored across the plane ``z = z_mm``."""
+    out = np.array(q, float, copy=True)
+    out[..., 2] = 2.0 * z_mm - out[..., 2]
+    return out
+
+
 def image_polys(polys: np.ndarray, normals: np.ndarray, z_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Quads ``polys`` (P, 4, 3) and their normals mirrored across the plane ``z = z_mm``."""
-    ip = np.array(polys, float, copy=True)
-    ip[..., 2] = 2.0 * z_mm - ip[..., 2]
+    ip = _mirrored(polys, z_mm)
     n = np.array(normals, float, copy=True)
     n[..., 2] = -n[..., 2]
     return ip, n
@@ -98,7 +111,7 @@ def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris) 
     return ok
 
 
-def _uncertain(ca, r_a, cb_img, r_b, z_mm, lo, hi, bodies, tris, real_of):
+def _uncertain(ca, r_a, cb_img, r_b, z_mm, lo, hi, bodies, tris):
     """Bool per pair (receiving point/patch ``ca`` of radius ``r_a``, image centre ``cb_img`` of
     radius ``r_b``): may its lines meet the plate's edge, a body or a mesh (then sampled), or is
     the centre line's verdict the whole pair's?"""
@@ -110,7 +123,7 @@ def _uncertain(ca, r_a, cb_img, r_b, z_mm, lo, hi, bodies, tris, real_of):
     if tris is not None and len(tris):
         return unc | outer
     if bodies:
-        cb = real_of(cb_img)
+        cb = _mirrored(cb_img, z_mm)
         for near in pairs_near_bodies(bodies, ca, p, r_a, m):
             unc[near] = True
         for near in pairs_near_bodies(bodies, p, cb, m, r_b):
@@ -126,8 +139,7 @@ def _visible_share(A, W, B_img, z_mm, lo, hi, bodies, tris):
     b = B_img.reshape(-1, 3)
     p = _cross_plane(a, b, z_mm)
     ok = _on_plate(p, lo, hi)
-    real = b.copy()
-    real[:, 2] = 2.0 * z_mm - real[:, 2]
+    real = _mirrored(b, z_mm)
     live = np.nonzero(ok)[0]
     if live.size:
         ok[live] = _legs_clear(a[live], real[live], p[live], bodies, tris)
@@ -172,8 +184,7 @@ def patch_image_factors(patches: Patches, ir, bodies=(), tris=None) -> tuple[np.
         # the share of each pair's lines that meet the plate with both legs clear
         p = _cross_plane(c[side][ii], ic[jj], z)
         V = _on_plate(p, lo, hi).astype(float)
-        unc = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], z, lo, hi, bodies, tris,
-                         lambda q: np.c_[q[:, :2], 2.0 * z - q[:, 2]])
+        unc = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], z, lo, hi, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_PAIR_POINTS
@@ -217,8 +228,7 @@ def receiver_image_factors(patches: Patches, ir, P, N, gather, bodies=(), tris=N
             continue
         p = _cross_plane(P[rx][ii], ic[jj], z)
         V = _on_plate(p, lo, hi).astype(float)
-        unc = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], z, lo, hi, bodies, tris,
-                         lambda q: np.c_[q[:, :2], 2.0 * z - q[:, 2]])
+        unc = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], z, lo, hi, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_GATHER_POINTS

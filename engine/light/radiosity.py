@@ -1179,19 +1179,15 @@ class RadiosityTransport:
         plate's faces, past bodies and meshes, and their lines' cosines with the plate's normal
         (:func:`lbscene.engine.light.plate_mirror.patch_image_factors`; a specular plate only)."""
         if self._images is None:
-            from .plate_mirror import patch_image_factors
+            from .plate_mirror import IMAGE_NEAR_FACTOR, IMAGE_PAIR_POINTS, patch_image_factors, plate_geometry_key
 
-            d = self.ctx.ir.diffuser
-            ck = self._patch_key + ("plate_images", self._body_sig, d.z_mm, d.thickness_mm,
-                                    tuple(d.centre_mm), tuple(d.size_mm))
+            plate = plate_geometry_key(self.ctx.ir)
+            ck = self._patch_key + ("plate_images", self._body_sig, tuple(plate))
             if ck not in self.ctx.cache:
-                from .plate_mirror import IMAGE_GATHER_POINTS, IMAGE_PAIR_POINTS
-
                 P = len(self.patches)
                 both = cached_array(
-                    "plate_image_factors", (self.patches.polys, self.patches.normals, self.blockers,
-                                            np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm])),
-                    self._body_sig + ("plate-images-1", IMAGE_PAIR_POINTS, IMAGE_GATHER_POINTS),
+                    "plate_image_factors", (self.patches.polys, self.patches.normals, self.blockers, plate),
+                    self._body_sig + ("plate-images-1", IMAGE_PAIR_POINTS, IMAGE_NEAR_FACTOR),
                     lambda: np.stack(patch_image_factors(self.patches, self.ctx.ir, [b for _, b in self.bodies],
                                                          self.blockers)),
                     shape=(2, P, P))
@@ -1315,13 +1311,11 @@ class RadiosityTransport:
         """``(G', cos)`` (M, P): the receivers' view of the patches' images in a specular plate
         (:func:`lbscene.engine.light.plate_mirror.receiver_image_factors`, with the meter's
         response), memoised per receiver set."""
-        from .plate_mirror import receiver_image_factors
+        from .plate_mirror import plate_geometry_key, receiver_image_factors
 
         m = np.broadcast_to(np.asarray(meter, bool), (len(P),))
-        d = self.ctx.ir.diffuser
         return self.ctx.memo(
-            "plate_images_rx", (P, N, m, self.patches.polys, self._body_digest,
-                                np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm])),
+            "plate_images_rx", (P, N, m, self.patches.polys, self._body_digest, plate_geometry_key(self.ctx.ir)),
             lambda: receiver_image_factors(
                 self.patches, self.ctx.ir, P, N,
                 lambda polys, normals, rows: self.model.lambertian_gather(polys, normals, P[rows], N[rows], m[rows]),

@@ -577,8 +577,8 @@ def _chi2_parts(fit: FitResult, noise: NoiseModel) -> tuple[float, float]:
 
 def _hypothesis(item: str):
     """The :class:`~lbscene.engine.loop.hypotheses.Hypothesis` a candidate ``hypothesis:<id>``
-    names, or None for an effect of the catalog (or an unknown id)."""
-    return HYPOTHESES.get(item[len(HYPOTHESIS_PREFIX):]) if item.startswith(HYPOTHESIS_PREFIX) else None
+    names, or None for an effect of the catalog."""
+    return HYPOTHESES[item[len(HYPOTHESIS_PREFIX):]] if item.startswith(HYPOTHESIS_PREFIX) else None
 
 
 def _channels(item: str) -> tuple[str, ...]:
