@@ -691,8 +691,7 @@ class BlenderScene:
                     for ch in ("Red", "Green", "Blue"):
                         nb.link(shape, comb_o.inputs[ch])
                     nb.link(comb_o.outputs[0], mult_o.inputs[7])
-                    self._colour_setters.append(
-                        lambda idx, s=mult_o.inputs[6], v=t: setattr(s, "default_value", _rgb(v, idx)))
+                    self._colour_sockets.append((mult_o.inputs[6], t, "factor"))
                     nb.link(mult_o.outputs[2], transl.inputs["Color"])
                 else:
                     nb.link(mult.outputs[2], transl.inputs["Color"])

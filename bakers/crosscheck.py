@@ -60,8 +60,17 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CrossCheck", "cross_check", "cross_check_all", "bake_points", "MODES",
+__all__ = ["CrossCheck", "CrossCheckBakeFailed", "cross_check", "cross_check_all", "bake_points", "MODES",
            "MODEL_PRECISION_PERCENT", "CONVERGED_BOUNCES", "MEAN_SIGMAS", "CHI2_P_MIN"]
+
+class CrossCheckBakeFailed(RuntimeError):
+    """The Cycles bake of a cross-check failed: ``error`` says why, ``log_tail`` the last lines of
+    its log (the command reports both, exit status 1)."""
+
+    def __init__(self, job_name: str, error: str | None, log_tail: list[str]):
+        super().__init__(f"Cycles bake {job_name} failed: {error}")
+        self.job_name, self.error, self.log_tail = job_name, error, list(log_tail)
+
 
 #: effects the Cycles scene cannot represent at a receiver (instrument models)
 INSTRUMENT_EFFECTS = ("detector_cosine_error",)
@@ -177,7 +186,7 @@ def bake_points(ir, lighting: str, points, normals=None, *, effects=None, surfac
     try:
         [res] = run_tasks([BakeTask(job, Path(out_dir))], progress=progress)
         if res.status == "failed":
-            raise RuntimeError(f"Cycles bake failed: {res.error}\n" + "\n".join(res.log_tail[-15:]))
+            raise CrossCheckBakeFailed(job.name, res.error, res.log_tail[-15:])
         d = json.loads((Path(out_dir) / "points.points.json").read_text())
     finally:
         if tmp is not None:

@@ -104,6 +104,15 @@ class Term:
         return Term(self.group, self.lamp_id, key, spec, None, None, kind or self.kind)
 
 
+def _behind_receivers(points: np.ndarray, P: np.ndarray, N: np.ndarray) -> bool:
+    """True when receivers sharing one normal all face away from every emitter point
+    (:math:`n·(e - p) ≤ 0` for every pair; checked through the extremes, in O(M + N))."""
+    if len(P) == 0 or len(points) == 0 or np.ptp(N, axis=0).max() > 0.0:
+        return False
+    n = N[0]
+    return bool(float(np.max(points @ n)) <= float(np.min(P @ n)))
+
+
 def as_receivers(points, normals=None, meter=None):
     """Normalise receiver arguments: points (M,3), unit normals (M,3), meter mask (M,).
 
@@ -449,6 +458,8 @@ class ForwardModel:
                 else:
                     theta = np.arccos(np.clip(ue @ es.aim, -1.0, 1.0))
         out = (g0, cos_rx, theta)
+        if self.ctx.cache.get("_transient"):
+            return out
         if len(store) >= 128:
             store.pop(next(iter(store)))
         store[key] = out
@@ -456,6 +467,11 @@ class ForwardModel:
 
     def _set_terms(self, es: EmitterSet, P, N, meter, exclude, incidence_weight, pair_factor=None,
                    per_point: bool = False):
+        if _behind_receivers(es.points_mm, P, N):
+            # every point lies behind every receiver (a lamp's image under a plate, seen from
+            # the plate's top): no light, and no geometry or path factor worth computing
+            zero = np.zeros((len(P), len(es.points_mm))) if per_point else np.zeros(len(P))
+            return [(es.spectral_key, es.spectrum_1nm, zero)]
         g0, cos_rx, theta = self._pair_geometry(es, P, N)
         base = es.weights[None, :] * g0
         if pair_factor is not None:
@@ -503,7 +519,9 @@ class ForwardModel:
         # receivers no emitter point reaches (facing away: an inter-reflection patch on the far
         # side of a lamp box's wall) need no path factors: they get none of this set's light
         live = np.any(base != 0.0, axis=1)
-        sub = None if live.all() or not live.any() else np.nonzero(live)[0]
+        if not live.any():
+            return [(es.spectral_key, es.spectrum_1nm, base if per_point else np.zeros(len(P)))]
+        sub = None if live.all() else np.nonzero(live)[0]
         Pp = P if sub is None else P[sub]
         for cls, p, fn in self._hooks("path_factors", exclude):
             # path factors depend on geometry only: cache them across parameter changes (a fit
@@ -517,9 +535,10 @@ class ForwardModel:
                 chs = store[ck]
             else:
                 chs = fn(self.ctx, p, es, Pp)
-                if len(store) >= 256:
-                    store.pop(next(iter(store)))
-                store[ck] = chs
+                if not self.ctx.cache.get("_transient"):
+                    if len(store) >= 256:
+                        store.pop(next(iter(store)))
+                    store[ck] = chs
             if not chs:
                 continue
             new = []

@@ -47,6 +47,7 @@ __all__ = [
     "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
+    "apart_from_plane",
     "polygon_form_factor_pairs",
     "Rectangle",
     "plate_pieces",
@@ -540,6 +541,23 @@ def _interval_abs_le(a: np.ndarray, d: np.ndarray, H: float):
     return np.maximum(lo, 0.0), np.minimum(hi, 1.0)
 
 
+def apart_from_plane(src: np.ndarray, half_step: np.ndarray | None, dst: np.ndarray, rect: Rectangle,
+                     margin_mm: float = 0.0) -> bool:
+    """True when every emitter segment ``src ± half_step`` (grown by ``margin_mm``) and every
+    receiver ``dst`` lie strictly on one side of ``rect``'s plane: no path between them crosses
+    it (light from tubes above a plate toward points on the plate never reaches an aperture
+    below it)."""
+    c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+    hs = 0.0 if half_step is None else abs(float(np.asarray(half_step, float) @ n))
+    h_src = (np.asarray(src, float) - c) @ n
+    h_dst = (np.asarray(dst, float) - c) @ n
+    if not len(h_src) or not len(h_dst):
+        return True
+    reach = hs + float(margin_mm) + _EPS
+    lo, hi = min(h_src.min() - reach, h_dst.min()), max(h_src.max() + reach, h_dst.max())
+    return bool(lo > 0.0 or hi < 0.0)
+
+
 def segment_fraction_hitting(src: np.ndarray, half_step: np.ndarray | None, dst: np.ndarray,
                              rect: Rectangle) -> np.ndarray:
     """Fraction ``(M, N)`` of each emitter segment whose light toward ``dst[m]`` crosses ``rect``.
@@ -551,6 +569,8 @@ def segment_fraction_hitting(src: np.ndarray, half_step: np.ndarray | None, dst:
     exactly instead of being stepped by the point spacing.  ``half_step``
     ``None`` (point emitters): 0/1 by :func:`segment_hits_rectangle`.
     """
+    if apart_from_plane(src, half_step, dst, rect):
+        return np.zeros((len(dst), len(src)))
     if half_step is None or not np.any(half_step):
         return segment_hits_rectangle(src, dst, rect).astype(float)
     c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)

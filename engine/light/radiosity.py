@@ -65,6 +65,7 @@ from dataclasses import replace
 import numpy as np
 
 from lbscene.engine.files.disk_cache import cached_array
+from lbscene.engine.light.effects.registry import changes_lamp_light
 
 from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_convex_faces, hidden_from_apex,
                        lamp_surface_distance_mm, mesh_patches, mesh_triangles, pairs_near_bodies, plate_pieces,
@@ -212,15 +213,6 @@ def _rounded(params, declared=None) -> dict:
     declared = dict(declared or {})
     return {k: (_round_number(v) if isinstance(v, float) and v != declared.get(k) else v)
             for k, v in dict(params or {}).items()}
-
-
-def _changes_lamp_light(effect_id: str) -> bool:
-    """Whether an effect changes the light lamps send to surfaces (any hook but a meter's)."""
-    from lbscene.engine.light.effects.registry import get_effect
-
-    cls = get_effect(effect_id)
-    return any(getattr(cls, h, None) is not None for h in
-               ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources"))
 
 
 def _concat_patches(parts) -> Patches:
@@ -747,7 +739,7 @@ class RadiosityTransport:
         ``point_sources``."""
         m = self.model
         # numbers as the booth declares them stay exact: only what a fit moves is rounded
-        eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if _changes_lamp_light(eid) else p)
+        eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if changes_lamp_light(eid) else p)
                for eid, p in m.effects.items()}
         lo = {lid: _rounded(o) for lid, o in m.ctx.lamp_overrides.items()}
         opts = replace(m.options, lamp_points=TRANSPORT_LAMP_POINTS)
@@ -1012,7 +1004,7 @@ class RadiosityTransport:
         lamp light, the lamp overrides and the lighting)."""
         if self._terms is None:
             tm = self._transport_model()
-            lamp_light = {eid: p for eid, p in tm.effects.items() if _changes_lamp_light(eid)}
+            lamp_light = {eid: p for eid, p in tm.effects.items() if changes_lamp_light(eid)}
             k = (self._patch_key, self._body_sig, tm.lighting,
                  json.dumps(lamp_light, sort_keys=True, default=str),
                  json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str))

@@ -89,12 +89,11 @@ from pathlib import Path
 
 import numpy as np
 
-from lbscene.engine.files.parallel import for_chunks, worker_count
 from lbscene.engine.light.geometry import gauss_legendre
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
            "fresnel_slab_transmittance",
-           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "PHOTONS", "MAX_EVENTS",
+           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "EXIT_PHI_STEPS", "PHOTONS", "MAX_EVENTS",
            "SHIPPED_PLATES", "SHIPPED_TABLES_DIR", "shipped_table_path", "write_shipped_table"]
 
 #: incidence angles of the table (degrees); 90° is the limit T = 0
@@ -123,9 +122,8 @@ SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
                   (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
-#: elements of one block of :meth:`RoughSlab.btdf_sum`'s (exit directions × arcs × θ_i nodes)
-#: arrays per cell: about 32 MB at a time however many receivers look at the plate
-BTDF_SUM_BLOCK_ELEMENTS = 4_000_000
+#: azimuths of :meth:`RoughSlab.exit_radiance_grid` (a 5° step; the table's bins are 10°)
+EXIT_PHI_STEPS = 72
 
 
 def fresnel_slab_transmittance(cos_i: np.ndarray, ior: float) -> np.ndarray:
@@ -378,73 +376,79 @@ class RoughSlab:
         f = (1.0 - t) * self.btdf_table[k, jo, jp] + t * self.btdf_table[k + 1, jo, jp]
         return np.asarray(absorption, float) ** 2 * f
 
-    def btdf_sum(self, cos_i, phi_i_rad, cos_o, phi_o_rad, weights) -> np.ndarray:
-        """:math:`\\sum_n f_T(θ_{i,cn}, θ_{o,cm}, φ_{o,cm} - φ_{i,cn})\\, w_{cn}` (1/sr times the
-        weights' unit), ``(C, M)``: per group ``c`` (a plate cell), light arriving from ``N``
-        directions ``(cos_i, phi_i_rad)`` (C, N) with weights ``weights`` (C, N) leaving
-        toward ``M`` directions ``(cos_o, phi_o_rad)`` (C, M).
+    def exit_radiance_grid(self, cos_i, phi_i_rad, weights, n_phi: int = EXIT_PHI_STEPS) -> np.ndarray:
+        """:math:`L_c(j_o, φ_g) = \\sum_n f_T(θ_{i,cn}, θ_o \\in j_o, φ_g - φ_{i,cn})\\, w_{cn}`
+        (1/sr times the weights' unit), ``(C, n_θo, n_phi)``: per group ``c`` (a plate cell), light
+        arriving from ``N`` directions ``(cos_i, phi_i_rad)`` (C, N) with weights ``weights``
+        (C, N), leaving in each exit-angle bin of the table and toward ``n_phi`` azimuths
+        :math:`φ_g = -π + 2πg/n_φ` (:meth:`exit_radiance_at` reads it for any direction).
 
-        The table lookup of :meth:`btdf` (linear in θ_i between the nodes, piecewise constant
-        over the exit bins, non-absorbing) summed without forming the (C, M, N) lookups.  The
-        θ_i interpolation goes into the weights, :math:`w_n[(1-t_n) f_{k_n} + t_n f_{k_n+1}]`:
-        each incoming direction is a weight vector :math:`W_n` over the nodes.  A (cell, exit
-        direction) pair reads one table entry per node and azimuth bin, and the incoming
-        directions in azimuth bin :math:`j` are those with :math:`φ_i` in the two arcs
-        :math:`φ_o ± [10j°, 10(j+1)°)`: with a cell's incoming directions sorted by azimuth, an
-        arc's weights are a difference of prefix sums :math:`\\sum_n W_n`, so
-
-        .. math:: \\sum_n f_T w_n = \\sum_{a=0}^{35} \\sum_k \\big(S_k(b_{a+1}) - S_k(b_a)\\big)
-                  f_{k, j_o, j(a)},
-
-        36 arcs of 10° from :math:`φ_o - 180°` instead of :math:`N` lookups.  Equal to
-        ``einsum("cmn,cn->cm", btdf(...), w)`` to rounding (an azimuth exactly on a bin edge may
-        fall in the other bin)."""
+        The sum is a circular convolution in azimuth: each incoming direction's weight is split
+        linearly in θ_i between two table nodes and in azimuth between two grid azimuths,
+        giving per cell a histogram :math:`H_c(k, b)`; then
+        :math:`L_c(j_o, g) = \\sum_k \\sum_b H_c(k, b)\\, κ_k(j_o, g - b)` with the kernel
+        :math:`κ_k(j_o, d)` the table's :math:`f_T` at :math:`Δφ = 2πd/n_φ`, averaged over the
+        same hat (the grid's linear split) — computed with FFTs, so the cost does not grow with
+        the number of receivers that later look at the plate.  Against the direct sum over
+        ``N`` × receivers: a blur of the azimuth by a grid step (5°; the table's bins are 10°)."""
         w = np.asarray(weights, float)
         C, N = w.shape
-        phi_o = np.asarray(phi_o_rad, float)
-        M = phi_o.shape[1]
-        out = np.zeros((C, M))
-        if N == 0 or M == 0:
-            return out
+        nt = self.btdf_table.shape[1]
+        if N == 0 or C == 0:
+            return np.zeros((C, nt, n_phi))
         th_i = np.rad2deg(np.arccos(np.clip(np.asarray(cos_i, float), 0.0, 1.0)))          # (C, N)
-        th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))          # (C, M)
-        K, nt, npf = self.btdf_table.shape
-        n_arcs = 2 * npf
         k = np.clip(np.searchsorted(THETA_I_DEG, th_i, side="right") - 1, 0, len(THETA_I_DEG) - 2)
         t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
+        x = (np.asarray(phi_i_rad, float) + np.pi) * (n_phi / (2.0 * np.pi))
+        b0 = np.floor(x)
+        fr = x - b0
+        b0 = b0.astype(int) % n_phi
+        b1 = (b0 + 1) % n_phi
+        # the θ_i nodes this light uses (a plate under tubes: a few dozen of the table's)
+        used = np.zeros(len(THETA_I_DEG), bool)
+        used[np.unique(k)] = True
+        used[np.unique(k) + 1] = True
+        nodes = np.nonzero(used)[0]
+        pos = np.full(len(THETA_I_DEG), -1)
+        pos[nodes] = np.arange(len(nodes))
+        Kc = len(nodes)
+        row = np.arange(C)[:, None] * (Kc * n_phi)
+        H = np.zeros(C * Kc * n_phi)
+        for kk, wk in ((pos[k], 1.0 - t), (pos[k + 1], t)):
+            for bb, wb in ((b0, 1.0 - fr), (b1, fr)):
+                H += np.bincount((row + kk * n_phi + bb).ravel(), (w * wk * wb).ravel(),
+                                 minlength=H.size)
+        Hf = np.fft.rfft(H.reshape(C, Kc, n_phi), axis=-1)                                 # (C, Kc, W)
+        Kf = np.fft.rfft(self._azimuth_kernel(n_phi)[nodes], axis=-1)                      # (Kc, nt, W)
+        return np.fft.irfft(np.einsum("ckw,kjw->cjw", Hf, Kf), n=n_phi, axis=-1)
+
+    def _azimuth_kernel(self, n_phi: int) -> np.ndarray:
+        """:math:`κ_k(j_o, d)` ``(K, n_θo, n_phi)``: :meth:`btdf` at each incidence node, in the
+        middle of each exit bin, at :math:`Δφ = 2πd/n_φ`, averaged over a hat one grid step wide
+        on either side (16 points)."""
+        nt = self.btdf_table.shape[1]
+        step = 2.0 * np.pi / n_phi
+        s = (np.arange(16) + 0.5) / 16 * 2.0 - 1.0                                         # (−1, 1)
+        hat = (1.0 - np.abs(s)) / np.sum(1.0 - np.abs(s))
+        dphi = np.arange(n_phi)[:, None] * step + s[None, :] * step                        # (n, 16)
+        cos_o = np.cos(np.deg2rad((np.arange(nt) + 0.5) * BIN_THETA_DEG))
+        f = self.btdf(self.cos_i[:, None, None, None], cos_o[None, :, None, None], dphi[None, None])
+        return np.einsum("kjds,s->kjd", np.broadcast_to(f, (len(self.cos_i), nt) + dphi.shape), hat)
+
+    @staticmethod
+    def exit_radiance_at(grid, cos_o, phi_o_rad) -> np.ndarray:
+        """``(C, M)`` values of an :meth:`exit_radiance_grid` ``(C, n_θo, n_phi)`` toward ``M``
+        directions per group ``(cos_o, phi_o_rad)`` (C, M): the exit bin holding θ_o (the table's
+        own resolution), linear between the two nearest grid azimuths."""
+        C, nt, n_phi = grid.shape
+        th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))
         jo = np.clip((th_o / BIN_THETA_DEG).astype(int), 0, nt - 1)                        # (C, M)
-        phi_i = np.asarray(phi_i_rad, float)
-        # arc a (from φ_o − 180° + 10a°) holds |Δφ| bin 17 − a below 18 arcs, a − 18 from there
-        arc_bin = np.r_[np.arange(npf - 1, -1, -1), np.arange(npf)]
-        # arcs' start: φ_o − π taken into [−π, π), the sorted azimuths repeated one turn up
-        s0 = np.where(phi_o - np.pi < -np.pi, phi_o + np.pi, phi_o - np.pi)                # (C, M)
-        edges = s0[:, :, None] + np.arange(n_arcs + 1) * (2.0 * np.pi / n_arcs)             # (C, M, 37)
-        edges[:, :, -1] = s0 + 2.0 * np.pi
-
-        def work(c0, c1):
-            for c in range(c0, c1):
-                kc = k[c]
-                k0, k1 = int(kc.min()), int(kc.max()) + 1
-                order = np.argsort(phi_i[c], kind="stable")
-                W = np.zeros((N, k1 - k0 + 1))
-                W[np.arange(N), kc[order] - k0] = ((1.0 - t[c]) * w[c])[order]
-                W[np.arange(N), kc[order] + 1 - k0] += (t[c] * w[c])[order]
-                ph = phi_i[c][order]
-                S = np.zeros((2 * N + 1, W.shape[1]))
-                np.cumsum(np.concatenate([W, W]), axis=0, out=S[1:])
-                ph2 = np.r_[ph, ph + 2.0 * np.pi]
-                tab = self.btdf_table[k0:k1 + 1]
-                step = max(1, BTDF_SUM_BLOCK_ELEMENTS // (n_arcs * W.shape[1]))
-                for a in range(0, M, step):
-                    b = min(M, a + step)
-                    pos = np.searchsorted(ph2, edges[c, a:b], side="left")                  # (m, 37)
-                    arcs = S[pos[:, 1:]] - S[pos[:, :-1]]                                   # (m, 36, Kc)
-                    f = tab[:, jo[c, a:b]][:, :, arc_bin]                                   # (Kc, m, 36)
-                    out[c, a:b] = np.einsum("mak,kma->m", arcs, f, optimize=True)
-
-        # cells on the worker threads (numpy releases the GIL)
-        for_chunks(work, C, max(1, -(-C // worker_count())))
-        return out
+        x = (np.asarray(phi_o_rad, float) + np.pi) * (n_phi / (2.0 * np.pi))
+        g0 = np.floor(x)
+        fr = x - g0
+        g0 = g0.astype(int) % n_phi
+        c = np.arange(C)[:, None]
+        return (1.0 - fr) * grid[c, jo, g0] + fr * grid[c, jo, (g0 + 1) % n_phi]
 
 
 def _shape():

@@ -204,16 +204,28 @@ def _run_cross_check(target: Path, lighting: Optional[str], quality: str, sample
     from lbscene.commands.console import table
 
     from lbscene.bakers.crosscheck import (CHI2_P_MIN, MEAN_SIGMAS, MODEL_PRECISION_PERCENT, MODES,
-                                           cross_check_all)
+                                           CrossCheckBakeFailed, cross_check_all)
 
     t0 = time.perf_counter()
     ir, _, _ = _load_ir(target, allowed_dirs)
     names = _lighting_names(ir, target, lighting)
     modes = MODES if mode is CrossMode.both else (mode.value,)
     checks = []
-    for name in names:
-        checks += cross_check_all(ir, name, modes=modes, quality=quality, samples=samples,
-                                  progress=format is Format.text)
+    try:
+        for name in names:
+            checks += cross_check_all(ir, name, modes=modes, quality=quality, samples=samples,
+                                      progress=format is Format.text)
+    except CrossCheckBakeFailed as exc:
+        # Cycles itself failed (not the booth file): said as the bakes say it, exit status 1
+        if format is Format.json:
+            echo(json_text({"booth": ir.booth_name, "ir_hash": ir.content_hash, "quality": quality,
+                            "ok": False, "error": {"code": "LB600", "message": str(exc),
+                                                   "log_tail": exc.log_tail}}, indent=2))
+        else:
+            echo(f"error LB600: {exc}", err=True)
+            for line in exc.log_tail[-8:]:
+                echo(f"    {line}", err=True)
+        raise typer.Exit(1) from None
     rows = [c.summary() for c in checks]
     failed = [r for r in rows if not r["agrees"]]
     elapsed = time.perf_counter() - t0

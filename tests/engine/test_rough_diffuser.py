@@ -69,19 +69,27 @@ def test_a_rough_plate_of_the_same_total_transmittance_transmits_less_at_larger_
     assert 0.95 < ratio[1] < ratio[0] - 0.002
 
 
-def test_the_regime_switch_follows_the_lobe_footprint(ir):
+def test_the_regime_switch_follows_the_lobe_footprint_and_width(ir):
     fp = [plates.plate_lobe_footprint_mm(_ir_with(ir, type="roughness", roughness=r), "L")
-          for r in (0.04, 0.3, 0.9)]
-    assert fp[0] < 1.0 < fp[1] < 50.0 and fp[2] > 25.0
+          for r in (0.04, 0.3, 0.5)]
+    assert fp[0] < 1.0 < fp[1] < fp[2] and fp[1] < 25.0
     assert plates.plate_lobe_footprint_mm(_ir_with(ir, type="lambertian", diffuse_fraction=0.5), "L") == 0.0
     P = np.array([[0.0, 0.0, 0.0]])
     kinds = lambda fm: [type(s).__name__ for s in fm.secondary_sources()]      # noqa: E731
+    # roughness 0.3 (θ₉₀ 11.6°, footprint under 25 mm): straight paths, unless the cells are
+    # finer than its footprint
+    from lbscene.engine.light.effects.builtin.diffuser import DiffuserEffect
+
     assert kinds(ForwardModel(ir, "L")) == []
-    wide = _ir_with(ir, type="roughness", roughness=0.9)
-    assert kinds(ForwardModel(wide, "L", effects={"diffuser": {"cell_size_mm": fp[2] * 2}})) == []
-    fm = ForwardModel(wide, "L", effects={"diffuser": {"cell_size_mm": fp[2] / 2}})
+    fm = ForwardModel(ir, "L", effects={"diffuser": {"scattered_cell_size_mm": fp[1] * 0.9}})
+    assert DiffuserEffect._scattered(fm.ctx, fm.ctx.params("diffuser"))
+    # roughness 0.5 (θ₉₀ 27°): a wide lobe re-emits through the cells however large they are
+    wide = _ir_with(ir, type="roughness", roughness=0.5)
+    assert float(plates.plate_slab(wide).lobe_deg(1.0, 0.9)) > 20.0
+    fm = ForwardModel(wide, "L", effects={"diffuser": {"scattered_cell_size_mm": fp[2] * 2}})
     assert kinds(fm) == ["DirectionalSource"]
     assert fm.illuminance_lx(P)[0] > 0
+    assert kinds(ForwardModel(wide, "L", effects={"diffuser": {"rough_transport": "regular"}})) == []
 
 
 def test_the_directional_source_reduces_to_a_lambertian_one(ir, monkeypatch):
@@ -96,13 +104,8 @@ def test_the_directional_source_reduces_to_a_lambertian_one(ir, monkeypatch):
         return np.broadcast_to(plates.opal_entry_relative(cos_i, n) * plates.opal_exit_shape(cos_o, n)
                                * T_ref / np.pi, shape)
 
-    def lambertian_sum(self, cos_i, phi_i, cos_o, phi_o, w):
-        # what the source sums: Σ_n f(θ_i,n, θ_o,m, Δφ) w_n (RoughSlab.btdf_sum's definition)
-        f = lambertian(self, cos_i[:, None, :], cos_o[:, :, None], phi_o[:, :, None] - phi_i[:, None, :])
-        return np.einsum("cmn,cn->cm", f, w)
-
+    # the source's exit-radiance grid reads the law through btdf (RoughSlab._azimuth_kernel)
     monkeypatch.setattr(RoughSlab, "btdf", lambertian)
-    monkeypatch.setattr(RoughSlab, "btdf_sum", lambertian_sum)
     P = np.array([[0.0, 0.0, 0.0], [0.0, -250.0, 0.0], [400.0, 250.0, 0.0]])
     a = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered"}}).illuminance_lx(P)
     b = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "regular",
@@ -116,7 +119,8 @@ def test_the_directional_source_sends_light_on_along_its_incident_direction(ir):
     # a wide rough plate lit from one side: its radiance is largest in the direction the light
     # travels (a slab with parallel faces has no net deviation), not mirrored about the normal
     wide = _ir_with(ir, type="roughness", roughness=0.7)
-    fm = ForwardModel(wide, "L", effects={"diffuser": {"rough_transport": "scattered", "cell_size_mm": 100}})
+    fm = ForwardModel(wide, "L", effects={"diffuser": {"rough_transport": "scattered",
+                                                                  "scattered_cell_size_mm": 100}})
     src = fm.secondary_sources()[0]
     from lbscene.engine.light.geometry import quad_centroids
 
@@ -228,16 +232,17 @@ def _strip_flux_per_peak_intensity(tmp_path):
         "tube", "type: tube, position_mm: [0, 0, 627], axis: [1, 0, 0], length_mm: 1200, radius_mm: 13, "
         "spd: {type: cie_illuminant, name: D65}, output: {type: luminance_cd_m2, value_cd_m2: 20000}",
         _NEAR_TUBE_DIFFUSER)
-    fm = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered", "cell_size_mm": 25}})
+    fm = ForwardModel(ir, "L", effects={"diffuser": {"rough_transport": "scattered"}})
 
     def direct(points, normals, exclude=()):
         raise AssertionError("the rough source reads its light point by point")
     direct.per_point = lambda points, normals, exclude=(): fm.direct_per_point(points, normals, exclude=exclude)
-    polys, groups, terms, E, _, _ = D.DiffuserEffect._rough_incoming(fm.ctx, fm.ctx.params("diffuser"), direct)
+    p = fm.ctx.params("diffuser")
+    polys = D.DiffuserEffect._cells(fm.ir.diffuser, p.scattered_cell_size_mm)
     per_cell = np.zeros(len(polys))
-    for j in range(len(terms)):
-        for gi, (idx, _) in enumerate(groups):
-            per_cell[idx] += E[j][gi].sum(axis=1)                  # the cell's mean irradiance, 1/m²
+    for idx, _, light in D.DiffuserEffect._rough_incoming(fm.ctx, p, direct):
+        for _, E, _, _ in light.values():
+            per_cell[idx] += E.sum(axis=1)                          # the cell's mean irradiance, 1/m²
     flux = per_cell * quad_areas(polys) * 1e-6                      # per unit peak intensity
     y0 = np.round(polys[:, :, 1].min(axis=1), 6)
     return {(a, a + 25.0): flux[y0 == a].sum() for a in np.unique(y0)}

@@ -150,22 +150,64 @@ def test_btdf_is_reciprocal():
 
 
 
-def test_btdf_sum_is_the_weighted_sum_of_the_btdf():
-    # the radiance kernel of a rough plate's cells (diffuser's directional source) against its
-    # definition, Σ_n f_T(θ_i,n, θ_o,m, φ_o,m − φ_i,n) w_n from the table lookup itself: grazing,
-    # normal and node incidences, azimuths across ±π
+def _hat_btdf(s, cos_i, cos_o, dphi, n_phi, points=400):
+    """The table's f_T averaged over a hat one grid step (2π/n_phi) wide on either side of Δφ,
+    by a plain midpoint rule (independent of the kernel's 16 points)."""
+    step = 2 * np.pi / n_phi
+    u = (np.arange(points) + 0.5) / points * 2 - 1
+    h = (1 - np.abs(u)) / np.sum(1 - np.abs(u))
+    return np.sum(h * s.btdf(cos_i[..., None], cos_o[..., None], dphi[..., None] + u * step), axis=-1)
+
+
+def test_the_exit_grid_is_the_hat_averaged_sum_of_the_btdf():
+    # the radiance kernel of a rough plate's cells (diffuser's directional source), through the
+    # FFT convolution, against its definition summed directly: incoming light at incidence
+    # nodes and grid azimuths (where the linear splits are exact), leaving toward grid azimuths
     s = rs.rough_slab(0.2 ** 2, 1.5)
+    n_phi = rs.EXIT_PHI_STEPS
     rng = np.random.default_rng(7)
-    C, M, N = 5, 37, 240
-    cos_i = rng.uniform(0.0, 1.0, (C, N))
-    cos_i[:, :4] = [0.0, 1.0, np.cos(np.deg2rad(30.0)), 1e-4]
-    phi_i = rng.uniform(-np.pi, np.pi, (C, N))
-    cos_o = rng.uniform(0.0, 1.0, (C, M))
-    phi_o = rng.uniform(-np.pi, np.pi, (C, M))
+    C, N = 3, 60
+    k = rng.integers(0, len(rs.THETA_I_DEG) - 1, (C, N))
+    cos_i = np.cos(np.deg2rad(rs.THETA_I_DEG[k]))
+    b = rng.integers(0, n_phi, (C, N))
+    phi_i = -np.pi + 2 * np.pi * b / n_phi
     w = rng.uniform(0.0, 2.0, (C, N))
-    want = np.einsum("cmn,cn->cm", s.btdf(cos_i[:, None, :], cos_o[:, :, None],
-                                           phi_o[:, :, None] - phi_i[:, None, :]), w)
-    np.testing.assert_allclose(s.btdf_sum(cos_i, phi_i, cos_o, phi_o, w), want, rtol=1e-12, atol=0)
+    grid = s.exit_radiance_grid(cos_i, phi_i, w)
+    assert grid.shape == (C, s.btdf_table.shape[1], n_phi)
+    jo = np.array([0, 7, 22, 44])
+    cos_o = np.cos(np.deg2rad((jo + 0.5) * rs.BIN_THETA_DEG))
+    g = np.arange(0, n_phi, 5)
+    phi_o = -np.pi + 2 * np.pi * g / n_phi
+    want = np.einsum("cjgn,cn->cjg", _hat_btdf(s, cos_i[:, None, None, :], cos_o[None, :, None, None],
+                                                (phi_o[None, None, :, None] - phi_i[:, None, None, :]),
+                                                n_phi), w)
+    np.testing.assert_allclose(grid[:, jo][:, :, g], want, rtol=1e-9, atol=1e-12)
+    # read back at the grid's own directions: the same values
+    got = rs.RoughSlab.exit_radiance_at(grid, np.broadcast_to(cos_o[None, :, None], want.shape).reshape(C, -1),
+                                        np.broadcast_to(phi_o[None, None, :], want.shape).reshape(C, -1))
+    np.testing.assert_allclose(got, want.reshape(C, -1), rtol=1e-9, atol=1e-12)
+
+
+def test_the_exit_grid_keeps_the_azimuthal_integral_of_the_btdf():
+    # whatever the incoming azimuths and incidences (between nodes, across ±π), the grid's
+    # integral over exit azimuth equals Σ_n w_n ∫ f_T dΔφ of the table (its bins' sum times
+    # their width, both sides), per exit bin: the azimuth splits and the hat move light, never
+    # make or lose it
+    s = rs.rough_slab(0.35 ** 2, 1.5)
+    rng = np.random.default_rng(3)
+    C, N = 4, 500
+    cos_i = rng.uniform(0.0, 1.0, (C, N))
+    cos_i[:, :3] = [1.0, 0.0, 1e-4]
+    phi_i = rng.uniform(-np.pi, np.pi, (C, N))
+    phi_i[:, 3:5] = [-np.pi, np.pi - 1e-12]
+    w = rng.uniform(0.0, 2.0, (C, N))
+    grid = s.exit_radiance_grid(cos_i, phi_i, w)
+    nt, npf = s.btdf_table.shape[1:]
+    cos_o = np.cos(np.deg2rad((np.arange(nt) + 0.5) * rs.BIN_THETA_DEG))
+    bins = np.deg2rad((np.arange(npf) + 0.5) * rs.BIN_PHI_DEG)                     # bin centres
+    f = s.btdf(cos_i[:, :, None, None], cos_o[None, None, :, None], bins[None, None, None, :])
+    want = np.einsum("cnjb,cn->cj", f, w) * 2 * np.deg2rad(rs.BIN_PHI_DEG)
+    np.testing.assert_allclose(grid.sum(axis=2) * 2 * np.pi / grid.shape[2], want, rtol=1e-9)
 
 
 def test_absorption_scales_transmitted_light_by_a_squared():

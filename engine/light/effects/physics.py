@@ -53,6 +53,7 @@ Diagnosis metadata (class attributes):
 from __future__ import annotations
 
 import inspect
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, ClassVar, Protocol
 
@@ -195,6 +196,18 @@ class ForwardContext:
 
         return effect_params(get_effect(effect_id), self.effects.get(effect_id, {}))
 
+    @contextmanager
+    def transient(self):
+        """Within it, results are computed and not kept: :meth:`memo` and the forward model's
+        stores (pair geometry, path factors) skip storing, for light computed once at many
+        points (a rough plate's sub-points) whose arrays would crowd out what a fit reuses."""
+        before = self.cache.get("_transient", False)
+        self.cache["_transient"] = True
+        try:
+            yield
+        finally:
+            self.cache["_transient"] = before
+
     def memo(self, name: str, key_arrays: tuple, compute, *, limit: int = 512):
         """``compute()`` cached under ``name`` + the content of ``key_arrays``.
 
@@ -205,6 +218,8 @@ class ForwardContext:
         from lbscene.engine.files.disk_cache import array_key
 
         # one store per kind, each with its own bound: arrays of (receivers × emitters) add up
+        if self.cache.get("_transient"):
+            return compute()
         store = self.cache.setdefault(("_memo", name.split(":", 1)[0]), {})
         k = (name, array_key(*[np.asarray(a, float) for a in key_arrays]))
         hit = store.get(k)
@@ -224,7 +239,10 @@ class ForwardContext:
         weighted by its Lambertian ``max(0, n·u)`` toward the receiver.
         """
         ring = TUBE_RING if ring is None else int(ring)
-        from lbscene.engine.light.geometry import segment_fraction_hitting
+        from lbscene.engine.light.geometry import apart_from_plane, segment_fraction_hitting
+
+        if apart_from_plane(es.points_mm, es.half_step, rx, rect, es.line_radius_mm or 0.0):
+            return np.zeros((len(rx), len(es.points_mm)))
 
         half = es.half_step if es.half_step is not None else np.zeros(3)
         key = (es.points_mm, half, rx, *rect.key_arrays)

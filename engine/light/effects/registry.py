@@ -39,7 +39,7 @@ from typing import ClassVar
 from lbscene.schemas.base import StrictModel
 
 __all__ = ["Effect", "EffectParams", "register_effect", "get_effect", "available_effects",
-           "UnknownEffectError", "BUILTIN_PACKAGE"]
+           "changes_lamp_light", "UnknownEffectError", "BUILTIN_PACKAGE"]
 
 #: the package whose modules are the built-in effects (imported on the first lookup)
 BUILTIN_PACKAGE = __name__.rpartition(".")[0] + ".builtin"
@@ -112,3 +112,12 @@ def get_effect(effect_id: str) -> type[Effect]:
         return _REGISTRY[effect_id]
     except KeyError:
         raise UnknownEffectError(effect_id) from None
+
+
+def changes_lamp_light(effect_id: str) -> bool:
+    """Whether an effect changes the light lamps send to surfaces (any hook but a meter's):
+    what keys the light stored on surfaces (the inter-reflection's patches, a rough plate's
+    cells) for reuse by later models."""
+    cls = get_effect(effect_id)
+    return any(getattr(cls, h, None) is not None for h in
+               ("modify_emitters", "extra_emitters", "path_factors", "secondary_sources"))

@@ -22,6 +22,7 @@ patches of the plate's hemispherical reflectance.  The plate itself
 
 from __future__ import annotations
 
+import json
 from typing import Literal
 
 import numpy as np
@@ -29,23 +30,33 @@ from pydantic import Field
 
 from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel,
                                                   PhysicalEffect)
-from lbscene.engine.light.effects.registry import EffectParams, register_effect
+from lbscene.engine.light.effects.registry import EffectParams, changes_lamp_light, register_effect
 from lbscene.engine.light.plates import (OpalEntryWeight, absorption_squared, diffuser_fraction, diffuser_rect,
                                          diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
                                          plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
                                          reference_transmittance, slab_relative, specular_plate)
+from lbscene.engine.light.rough_slab import EXIT_PHI_STEPS, RoughSlab
 
 __all__ = ["DiffuserEffect"]
 
 
-#: rough plate radiances (per unit 1 − f_d) kept per forward-model cache: a fit varying only the
-#: plate's diffuse fraction or transmittance asks for the same few sets of directions again
-ROUGH_RADIANCE_MEMO = 8
+#: rough plates' exit-radiance grids (per unit 1 − f_d) kept per forward-model cache: a fit
+#: varying only the plate's diffuse fraction or transmittance asks for the same light again
+ROUGH_RADIANCE_MEMO = 4
+#: a rough plate whose transmitted lobe holds 90 % of its light beyond this angle (normal
+#: incidence) re-emits through its cells (``rough_transport: auto``): straight paths with T(θ) keep
+#: a grazing path's direction where a wide lobe turns light toward the plate's normal — under tubes
+#: 14 mm above a plate of GGX α 0.3 (θ₉₀ 29°) 2.4 % / 3.1 % low against Mitsuba 3 (validation scene
+#: ``aperture-diffuser``), through the cells 0.7 %; with α 0.09 (θ₉₀ 11°) straight paths are the
+#: closer (0.5 % / 0.7 % against 0.7 % / 1.0 %, ``rough-diffuser-r030``)
+SCATTERED_LOBE_DEG = 20.0
 #: sub-points a side of a rough plate's re-emitting cell: at least, at most, and how many times
 #: closer than the cell's distance to the nearest lamp surface they are spaced
 ROUGH_SUB_MIN = 2
 ROUGH_SUB_MAX = 8
 ROUGH_SUB_DISTANCE_RATIO = 3.5
+#: sub-points of a rough plate's cells whose incoming light is computed at once
+ROUGH_CHUNK_POINTS = 1024
 
 
 @register_effect
@@ -66,8 +77,8 @@ class DiffuserEffect(PhysicalEffect):
         diffuse_fraction: float | None = Field(
             None, ge=0, le=1, description="Override of the booth diffuser's diffuse fraction.")
         cell_size_mm: float = Field(50.0, gt=1, le=1000,
-                                    description="Cell size of the re-emitting plate (diffuse part; "
-                                                "a rough plate's scattered light).")
+                                    description="Cell size of the re-emitting plate (an opal "
+                                                "plate's diffuse part).")
         plate_reflection: Literal["specular", "diffuse"] = Field(
             "specular", description="How a clear or rough plate reflects light: 'specular' (the lamps' "
                                     "and the surfaces' mirror images in its faces, times its "
@@ -77,7 +88,12 @@ class DiffuserEffect(PhysicalEffect):
             "auto", description="A roughness plate's light: 'regular' (straight paths times the "
                                 "rough slab's transmittance T(θ)), 'scattered' (plate cells "
                                 "re-emit through the slab's BTDF), 'auto' (scattered when the "
-                                "lobe's footprint on the plate exceeds the cell size).")
+                                "lobe's footprint on the plate exceeds scattered_cell_size_mm or "
+                                "the lobe is wide, 90 % of its light beyond 20° of the straight "
+                                "line).")
+        scattered_cell_size_mm: float = Field(25.0, gt=1, le=1000,
+                                              description="Cell size of a roughness plate whose light "
+                                                          "re-emits through the slab's BTDF.")
 
     @classmethod
     def applicable(cls, ir, lighting):
@@ -90,7 +106,9 @@ class DiffuserEffect(PhysicalEffect):
             return False
         if p.rough_transport == "scattered":
             return True
-        return plate_lobe_footprint_mm(ctx.ir, ctx.lighting) > p.cell_size_mm
+        if plate_lobe_footprint_mm(ctx.ir, ctx.lighting) > p.scattered_cell_size_mm:
+            return True
+        return float(plate_slab(ctx.ir).lobe_deg(1.0, 0.9)) >= SCATTERED_LOBE_DEG
 
     @staticmethod
     def extra_emitters(ctx, p, lamp, es):
@@ -177,50 +195,82 @@ class DiffuserEffect(PhysicalEffect):
 
     @classmethod
     def _rough_incoming(cls, ctx, p, direct):
-        """The light arriving on the top face of a rough plate's cells, per emitter point:
-        ``(polys, groups, terms, E, cos_i, phi)`` with ``groups`` the cells ``(indices, k)``
-        sampled at ``k × k`` sub-points (:meth:`_cell_subpoints`) and, per term and group,
-        ``E`` (Cg, k·k·N) the irradiance of each emitter point at each sub-point times its area
-        weight (their sum over a cell is the cell's mean irradiance), ``cos_i`` its incidence
-        cosine and ``phi`` the azimuth of its propagation (away from the emitter); None when
-        no light arrives."""
+        """The light arriving on the top face of a rough plate's cells, per emitter point, in
+        chunks of cells: yields ``(idx, k, light)`` for cells ``idx`` sampled at ``k × k``
+        sub-points (:meth:`_cell_subpoints`), ``light`` mapping each term's key to
+        ``(term, E, cos_i, phi)``: ``E`` (n, k·k·N) the irradiance of each emitter point at each
+        sub-point times its area weight (their sum over a cell is the cell's mean irradiance),
+        ``cos_i`` its incidence cosine and ``phi`` the azimuth of its propagation (away from the
+        emitter).  A chunk holds at most :data:`ROUGH_CHUNK_POINTS` sub-points: the
+        (sub-point × emitter point) arrays of a large plate do not all exist at once."""
         from lbscene.engine.light.geometry import quad_subpoints
 
-        polys = cls._cells(ctx.ir.diffuser, p.cell_size_mm)
-        ks = cls._cell_subpoints(ctx, polys, p.cell_size_mm)
-        # cells grouped by their sub-points a side: one per_point call over all of them
-        groups, tops, w_of = [], [], []
+        polys = cls._cells(ctx.ir.diffuser, p.scattered_cell_size_mm)
+        ks = cls._cell_subpoints(ctx, polys, p.scattered_cell_size_mm)
         for k in np.unique(ks):
-            idx = np.nonzero(ks == k)[0]
-            pts, w = quad_subpoints(polys[idx], int(k))
-            groups.append((idx, int(k)))
-            tops.append(pts.reshape(-1, 3))
-            w_of.append(w)
-        top = np.concatenate(tops) + np.array([0.0, 0.0, 1e-3])
-        bounds = np.cumsum([0] + [len(t) for t in tops])
-        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
-        merged: dict = {}
-        for pl in direct.per_point(top, up, exclude=(cls.id,)):
-            if pl.term.key in merged:
-                t, g, u = merged[pl.term.key]
-                merged[pl.term.key] = (t, np.concatenate([g, pl.geo], 1), np.concatenate([u, pl.from_dir], 1))
-            else:
-                merged[pl.term.key] = (pl.term, np.asarray(pl.geo), pl.from_dir)
-        if not merged:
-            return None
-        terms, E, cos_i, phi_p = [], [], [], []
-        for t, g, u in merged.values():
-            terms.append(t)
-            Eg, cg, pg = [], [], []
-            for (idx, k), a, b, w in zip(groups, bounds[:-1], bounds[1:], w_of):
+            k = int(k)
+            cells = np.nonzero(ks == k)[0]
+            step = max(1, ROUGH_CHUNK_POINTS // (k * k))
+            for first in range(0, len(cells), step):
+                idx = cells[first:first + step]
                 n = len(idx)
-                Eg.append((g[a:b].reshape(n, k * k, -1) * w[:, :, None]).reshape(n, -1))
-                cg.append(np.clip(u[a:b, :, 2], 0.0, 1.0).reshape(n, -1))
-                pg.append(np.arctan2(-u[a:b, :, 1], -u[a:b, :, 0]).reshape(n, -1))
-            E.append(Eg)
-            cos_i.append(cg)
-            phi_p.append(pg)
-        return polys, groups, terms, E, cos_i, phi_p
+                pts, w = quad_subpoints(polys[idx], k)
+                top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
+                up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
+                merged: dict = {}
+                for pl in direct.per_point(top, up, exclude=(cls.id,)):
+                    if not np.any(pl.geo):
+                        continue            # a lamp's image under the plate: none reaches its top
+                    E = (np.asarray(pl.geo).reshape(n, k * k, -1) * w[:, :, None]).reshape(n, -1)
+                    u = pl.from_dir
+                    c = np.clip(u[:, :, 2], 0.0, 1.0).reshape(n, -1)
+                    ph = np.arctan2(-u[:, :, 1], -u[:, :, 0]).reshape(n, -1)
+                    if pl.term.key in merged:
+                        _, E0, c0, ph0 = merged[pl.term.key]
+                        E, c, ph = (np.concatenate([E0, E], 1), np.concatenate([c0, c], 1),
+                                    np.concatenate([ph0, ph], 1))
+                    merged[pl.term.key] = (pl.term, E, c, ph)
+                yield idx, k, merged
+
+    @classmethod
+    def _rough_exit(cls, ctx, p, direct):
+        """``(polys, terms, grid)``: the rough plate's cells, the lamp terms lighting them and,
+        per cell and term, the exit radiance per unit :math:`(1 - f_d)` toward every exit bin
+        and grid azimuth (:meth:`~lbscene.engine.light.rough_slab.RoughSlab.exit_radiance_grid`,
+        ``(C, n_θo, n_φ, K)``), summed over the cells' incoming light (:meth:`_rough_incoming`)
+        once; None when no light arrives.  Kept per forward-model cache under everything that
+        changes the lamps' light on the plate (the booth, the lighting, the parameters of every
+        effect that changes lamp light but the plate's diffuse fraction and transmittance scale,
+        the lamp overrides; not the options: the light on the cells is each lamp's own
+        quadrature): a fit varying only the plate's or a meter's parameters, and the
+        inter-reflection's model of the same lamps, read it back."""
+        ir = ctx.ir
+        lamp_light = {eid: (dict(q, diffuse_fraction=None, transmittance_scale=None) if eid == cls.id else q)
+                      for eid, q in ctx.effects.items() if changes_lamp_light(eid)}
+        key = (ir.content_hash, ctx.lighting, json.dumps(lamp_light, sort_keys=True, default=str),
+               json.dumps(ctx.lamp_overrides, sort_keys=True, default=str), float(p.scattered_cell_size_mm))
+        store = ctx.cache.setdefault("_rough_exit", {})
+        if key in store:
+            return store[key]
+        polys = cls._cells(ir.diffuser, p.scattered_cell_size_mm)
+        slab = plate_slab(ir)
+        terms: dict = {}
+        grids: dict = {}
+        # the sub-points' light is used once, here: nothing of it is kept in the model's caches
+        with ctx.transient():
+            for idx, _, light in cls._rough_incoming(ctx, p, direct):
+                for tk, (t, E, cos_i, phi) in light.items():
+                    if tk not in terms:
+                        terms[tk] = t
+                        grids[tk] = np.zeros((polys.shape[0], slab.btdf_table.shape[1], EXIT_PHI_STEPS))
+                    grids[tk][idx] = slab.exit_radiance_grid(cos_i, phi, E)
+        hit = None
+        if terms:
+            hit = (polys, list(terms.values()), np.stack([grids[tk] for tk in terms], axis=-1))
+        if len(store) >= ROUGH_RADIANCE_MEMO:
+            store.pop(next(iter(store)))
+        store[key] = hit
+        return hit
 
     @classmethod
     def _rough_source(cls, ctx, p, direct, fd):
@@ -236,36 +286,20 @@ class DiffuserEffect(PhysicalEffect):
         plate, 2 × 2 points on 25 mm cells put the light 2–5 % off between and beyond the tubes
         against Mitsuba 3 (validation scene ``aperture-diffuser``), 6 × 6 within 1 %."""
         ir = ctx.ir
-        d = ir.diffuser
-        incoming = cls._rough_incoming(ctx, p, direct)
-        if incoming is None:
+        hit = cls._rough_exit(ctx, p, direct)
+        if hit is None:
             return None
-        polys, groups, terms, E, cos_i, phi_p = incoming
+        polys, terms, grid = hit
         C = polys.shape[0]
-        slab = plate_slab(ir)
         spec = diffuser_transmittance_1nm(ctx, p) / reference_transmittance(ir)
         descr = [t.derived(spectral_key="diffuser", spectrum_factor=spec, kind="diffuser") for t in terms]
 
         def radiance(dirs):
-            # linear in (1 − f_d): the BTDF sums, the costly part, are kept for the same
-            # directions and irradiances (a fit varying f_d or the plate's transmittance scale)
-            rough = float(d.scattering.get("roughness", -1.0))
-            flat = [a for per_term in (E, cos_i, phi_p) for grp in per_term for a in grp]
-            key = (dirs, [rough, d.ior, len(descr)], *flat)
-            return (1.0 - fd) * ctx.memo("rough_btdf", key, lambda: unit_radiance(dirs),
-                                         limit=ROUGH_RADIANCE_MEMO)
-
-        def unit_radiance(dirs):
-            cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                         # (C, M)
+            # linear in (1 − f_d)
+            cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                             # (C, M)
             phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
-            out = np.zeros(dirs.shape[:2] + (len(descr),))
-            for j in range(len(descr)):
-                for gi, (idx, _) in enumerate(groups):
-                    # Σ_n f_T E over the cell's incoming light, in bounded blocks of directions
-                    # however many receivers (a radiosity's patch points) look at the plate
-                    out[idx, :, j] = slab.btdf_sum(cos_i[j][gi], phi_p[j][gi], cos_o[idx], phi_o[idx],
-                                                   E[j][gi])
-            return out
+            return (1.0 - fd) * np.stack([RoughSlab.exit_radiance_at(grid[..., j], cos_o, phi_o)
+                                          for j in range(grid.shape[-1])], axis=-1)
 
         return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
 
