@@ -63,6 +63,7 @@ import numpy as np
 __all__ = ["CrossCheck", "CrossCheckBakeFailed", "cross_check", "cross_check_all", "bake_points", "MODES",
            "MODEL_PRECISION_PERCENT", "CONVERGED_BOUNCES", "MEAN_SIGMAS", "CHI2_P_MIN"]
 
+
 class CrossCheckBakeFailed(RuntimeError):
     """The Cycles bake of a cross-check failed: ``error`` says why, ``log_tail`` the last lines of
     its log (the command reports both, exit status 1)."""

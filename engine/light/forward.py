@@ -458,7 +458,7 @@ class ForwardModel:
                 else:
                     theta = np.arccos(np.clip(ue @ es.aim, -1.0, 1.0))
         out = (g0, cos_rx, theta)
-        if self.ctx.cache.get("_transient"):
+        if not self.ctx.storing:
             return out
         if len(store) >= 128:
             store.pop(next(iter(store)))
@@ -535,7 +535,7 @@ class ForwardModel:
                 chs = store[ck]
             else:
                 chs = fn(self.ctx, p, es, Pp)
-                if not self.ctx.cache.get("_transient"):
+                if self.ctx.storing:
                     if len(store) >= 256:
                         store.pop(next(iter(store)))
                     store[ck] = chs

@@ -1004,10 +1004,7 @@ class RadiosityTransport:
         lamp light, the lamp overrides and the lighting)."""
         if self._terms is None:
             tm = self._transport_model()
-            lamp_light = {eid: p for eid, p in tm.effects.items() if changes_lamp_light(eid)}
-            k = (self._patch_key, self._body_sig, tm.lighting,
-                 json.dumps(lamp_light, sort_keys=True, default=str),
-                 json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str))
+            k = (self._patch_key, self._body_sig, *tm.ctx.lamp_light_key())
             store = self.ctx.cache.setdefault("_rad_first", {})
             hit = store.get(k)
             if hit is None:

@@ -93,7 +93,8 @@ from lbscene.engine.light.geometry import gauss_legendre
 
 __all__ = ["RoughSlab", "rough_slab", "per_refraction_factor", "clear_slab_normal_transmittance",
            "fresnel_slab_transmittance",
-           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "EXIT_PHI_STEPS", "PHOTONS", "MAX_EVENTS",
+           "interface_split", "THETA_I_DEG", "BIN_THETA_DEG", "BIN_PHI_DEG", "EXIT_PHI_STEPS", "PHOTONS",
+           "MAX_EVENTS",
            "SHIPPED_PLATES", "SHIPPED_TABLES_DIR", "shipped_table_path", "write_shipped_table"]
 
 #: incidence angles of the table (degrees); 90° is the limit T = 0
@@ -399,11 +400,7 @@ class RoughSlab:
         th_i = np.rad2deg(np.arccos(np.clip(np.asarray(cos_i, float), 0.0, 1.0)))          # (C, N)
         k = np.clip(np.searchsorted(THETA_I_DEG, th_i, side="right") - 1, 0, len(THETA_I_DEG) - 2)
         t = np.clip((th_i - THETA_I_DEG[k]) / (THETA_I_DEG[k + 1] - THETA_I_DEG[k]), 0.0, 1.0)
-        x = (np.asarray(phi_i_rad, float) + np.pi) * (n_phi / (2.0 * np.pi))
-        b0 = np.floor(x)
-        fr = x - b0
-        b0 = b0.astype(int) % n_phi
-        b1 = (b0 + 1) % n_phi
+        b0, b1, fr = _azimuth_split(phi_i_rad, n_phi)
         # the θ_i nodes this light uses (a plate under tubes: a few dozen of the table's)
         used = np.zeros(len(THETA_I_DEG), bool)
         used[np.unique(k)] = True
@@ -433,22 +430,31 @@ class RoughSlab:
         dphi = np.arange(n_phi)[:, None] * step + s[None, :] * step                        # (n, 16)
         cos_o = np.cos(np.deg2rad((np.arange(nt) + 0.5) * BIN_THETA_DEG))
         f = self.btdf(self.cos_i[:, None, None, None], cos_o[None, :, None, None], dphi[None, None])
-        return np.einsum("kjds,s->kjd", np.broadcast_to(f, (len(self.cos_i), nt) + dphi.shape), hat)
+        return np.einsum("kjds,s->kjd", f, hat)
 
     @staticmethod
     def exit_radiance_at(grid, cos_o, phi_o_rad) -> np.ndarray:
-        """``(C, M)`` values of an :meth:`exit_radiance_grid` ``(C, n_θo, n_phi)`` toward ``M``
-        directions per group ``(cos_o, phi_o_rad)`` (C, M): the exit bin holding θ_o (the table's
-        own resolution), linear between the two nearest grid azimuths."""
-        C, nt, n_phi = grid.shape
+        """``(C, M, …)`` values of an :meth:`exit_radiance_grid` ``(C, n_θo, n_phi, …)`` (trailing
+        axes: several grids at once, a plate's terms) toward ``M`` directions per group
+        ``(cos_o, phi_o_rad)`` (C, M): the exit bin holding θ_o (the table's own resolution),
+        linear between the two nearest grid azimuths."""
+        C, nt, n_phi = grid.shape[:3]
         th_o = np.rad2deg(np.arccos(np.clip(np.asarray(cos_o, float), 0.0, 1.0)))
         jo = np.clip((th_o / BIN_THETA_DEG).astype(int), 0, nt - 1)                        # (C, M)
-        x = (np.asarray(phi_o_rad, float) + np.pi) * (n_phi / (2.0 * np.pi))
-        g0 = np.floor(x)
-        fr = x - g0
-        g0 = g0.astype(int) % n_phi
+        g0, g1, fr = _azimuth_split(phi_o_rad, n_phi)
+        fr = fr.reshape(fr.shape + (1,) * (grid.ndim - 3))
         c = np.arange(C)[:, None]
-        return (1.0 - fr) * grid[c, jo, g0] + fr * grid[c, jo, (g0 + 1) % n_phi]
+        return (1.0 - fr) * grid[c, jo, g0] + fr * grid[c, jo, g1]
+
+
+def _azimuth_split(phi_rad, n_phi: int):
+    """The two grid azimuths :math:`φ_g = -π + 2πg/n_φ` around each azimuth ``phi_rad`` and its
+    linear weight toward the second: ``(g0, g1, fraction)``."""
+    x = (np.asarray(phi_rad, float) + np.pi) * (n_phi / (2.0 * np.pi))
+    g0 = np.floor(x)
+    fr = x - g0
+    g0 = g0.astype(int) % n_phi
+    return g0, (g0 + 1) % n_phi, fr
 
 
 def _shape():

@@ -240,7 +240,7 @@ def _strip_flux_per_peak_intensity(tmp_path):
     p = fm.ctx.params("diffuser")
     polys = D.DiffuserEffect._cells(fm.ir.diffuser, p.scattered_cell_size_mm)
     per_cell = np.zeros(len(polys))
-    for idx, _, light in D.DiffuserEffect._rough_incoming(fm.ctx, p, direct):
+    for idx, light in D.DiffuserEffect._rough_incoming(fm.ctx, p, direct):
         for _, E, _, _ in light.values():
             per_cell[idx] += E.sum(axis=1)                          # the cell's mean irradiance, 1/m²
     flux = per_cell * quad_areas(polys) * 1e-6                      # per unit peak intensity

@@ -208,6 +208,27 @@ class ForwardContext:
         finally:
             self.cache["_transient"] = before
 
+    @property
+    def storing(self) -> bool:
+        """False inside :meth:`transient`: computed results are not to be kept."""
+        return not self.cache.get("_transient", False)
+
+    def lamp_light_key(self, ignore: dict[str, tuple[str, ...]] | None = None) -> tuple:
+        """What the lamps' light on surfaces depends on beyond the booth, as plain values: the
+        lighting, the parameters of every effect that changes lamp light
+        (:func:`~lbscene.engine.light.effects.registry.changes_lamp_light`; ``ignore`` names
+        parameters per effect that do not matter to the caller) and the lamp overrides.  Keys
+        the light stored on surfaces (the inter-reflection's patches, a rough plate's cells)."""
+        import json
+
+        from .registry import changes_lamp_light
+
+        ignore = ignore or {}
+        lamp_light = {eid: {k: v for k, v in dict(q or {}).items() if k not in ignore.get(eid, ())}
+                      for eid, q in self.effects.items() if changes_lamp_light(eid)}
+        return (self.lighting, json.dumps(lamp_light, sort_keys=True, default=str),
+                json.dumps(self.lamp_overrides, sort_keys=True, default=str))
+
     def memo(self, name: str, key_arrays: tuple, compute, *, limit: int = 512):
         """``compute()`` cached under ``name`` + the content of ``key_arrays``.
 
@@ -218,7 +239,7 @@ class ForwardContext:
         from lbscene.engine.files.disk_cache import array_key
 
         # one store per kind, each with its own bound: arrays of (receivers × emitters) add up
-        if self.cache.get("_transient"):
+        if not self.storing:
             return compute()
         store = self.cache.setdefault(("_memo", name.split(":", 1)[0]), {})
         k = (name, array_key(*[np.asarray(a, float) for a in key_arrays]))

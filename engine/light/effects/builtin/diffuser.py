@@ -22,7 +22,6 @@ patches of the plate's hemispherical reflectance.  The plate itself
 
 from __future__ import annotations
 
-import json
 from typing import Literal
 
 import numpy as np
@@ -30,7 +29,7 @@ from pydantic import Field
 
 from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel,
                                                   PhysicalEffect)
-from lbscene.engine.light.effects.registry import EffectParams, changes_lamp_light, register_effect
+from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import (OpalEntryWeight, absorption_squared, diffuser_fraction, diffuser_rect,
                                          diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
                                          plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
@@ -196,8 +195,8 @@ class DiffuserEffect(PhysicalEffect):
     @classmethod
     def _rough_incoming(cls, ctx, p, direct):
         """The light arriving on the top face of a rough plate's cells, per emitter point, in
-        chunks of cells: yields ``(idx, k, light)`` for cells ``idx`` sampled at ``k × k``
-        sub-points (:meth:`_cell_subpoints`), ``light`` mapping each term's key to
+        chunks of cells: yields ``(idx, light)`` for cells ``idx`` (sampled at ``k × k``
+        sub-points, :meth:`_cell_subpoints`), ``light`` mapping each term's key to
         ``(term, E, cos_i, phi)``: ``E`` (n, k·k·N) the irradiance of each emitter point at each
         sub-point times its area weight (their sum over a cell is the cell's mean irradiance),
         ``cos_i`` its incidence cosine and ``phi`` the azimuth of its propagation (away from the
@@ -230,7 +229,7 @@ class DiffuserEffect(PhysicalEffect):
                         E, c, ph = (np.concatenate([E0, E], 1), np.concatenate([c0, c], 1),
                                     np.concatenate([ph0, ph], 1))
                     merged[pl.term.key] = (pl.term, E, c, ph)
-                yield idx, k, merged
+                yield idx, merged
 
     @classmethod
     def _rough_exit(cls, ctx, p, direct):
@@ -245,10 +244,8 @@ class DiffuserEffect(PhysicalEffect):
         quadrature): a fit varying only the plate's or a meter's parameters, and the
         inter-reflection's model of the same lamps, read it back."""
         ir = ctx.ir
-        lamp_light = {eid: (dict(q, diffuse_fraction=None, transmittance_scale=None) if eid == cls.id else q)
-                      for eid, q in ctx.effects.items() if changes_lamp_light(eid)}
-        key = (ir.content_hash, ctx.lighting, json.dumps(lamp_light, sort_keys=True, default=str),
-               json.dumps(ctx.lamp_overrides, sort_keys=True, default=str), float(p.scattered_cell_size_mm))
+        key = (ir.content_hash, *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale")}),
+               float(p.scattered_cell_size_mm))
         store = ctx.cache.setdefault("_rough_exit", {})
         if key in store:
             return store[key]
@@ -258,7 +255,7 @@ class DiffuserEffect(PhysicalEffect):
         grids: dict = {}
         # the sub-points' light is used once, here: nothing of it is kept in the model's caches
         with ctx.transient():
-            for idx, _, light in cls._rough_incoming(ctx, p, direct):
+            for idx, light in cls._rough_incoming(ctx, p, direct):
                 for tk, (t, E, cos_i, phi) in light.items():
                     if tk not in terms:
                         terms[tk] = t
@@ -298,8 +295,7 @@ class DiffuserEffect(PhysicalEffect):
             # linear in (1 − f_d)
             cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                             # (C, M)
             phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
-            return (1.0 - fd) * np.stack([RoughSlab.exit_radiance_at(grid[..., j], cos_o, phi_o)
-                                          for j in range(grid.shape[-1])], axis=-1)
+            return (1.0 - fd) * RoughSlab.exit_radiance_at(grid, cos_o, phi_o)
 
         return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (C, 1)), radiance, descr)
 
