@@ -1,5 +1,5 @@
 """
-The diffuser plate as a mirror in the inter-reflection: image form factors.
+The diffuser plate and the lamps' mirrors in the inter-reflection: image form factors.
 
 A clear or rough plate (``plate_reflection: specular``, see
 :func:`lbscene.engine.light.plates.specular_plate`) reflects the light that reaches its faces
@@ -22,6 +22,13 @@ points) that meet the face inside the plate's rectangle and whose two legs, patc
 plate to patch, no body (lamp, occluder) or mesh crosses.  A patch sees its own image (a
 luminaire ceiling over the plate: :math:`i = j`).  Receivers gather the images the same way.
 
+The same holds for any one-sided plane mirror (:func:`face_image_factors`,
+:func:`face_receiver_factors`: a rectangle reflecting to the side its normal points to): the
+plate's two faces (:func:`plate_face_rects`) and the lamps' mirrors, whose reflectance
+:math:`R(λ)` does not depend on the angle.  Only the pairs whose centre line meets the face
+grown by the larger patch's half diagonal can see each other in it, so the form factors are
+computed for those alone (a mirror strip in a room: a few per cent of the pairs).
+
 A plate that reflected its surfaces' light diffusely instead (its faces as Lambertian patches of
 reflectance :math:`R_h`) sent the light a glass plate reflects at grazing incidence, which goes on
 toward the cavity's walls, up to the ceiling above it: receivers under the ceiling of the
@@ -33,11 +40,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import (Patches, bodies_block, pairs_near_bodies, polygon_form_factor, polygon_form_factor_pairs,
+from .geometry import (Patches, bodies_block, mirror_points, pairs_near_bodies, polygon_form_factor_pairs,
                        quad_centroids, quad_r2_points, quad_subpoints, segments_blocked)
 
-__all__ = ["plate_faces_mm", "plate_geometry_key", "image_polys", "patch_image_factors", "receiver_image_factors",
-           "IMAGE_PAIR_POINTS", "IMAGE_GATHER_POINTS"]
+__all__ = ["plate_faces_mm", "plate_face_rects", "plate_geometry_key", "image_polys", "face_image_factors",
+           "face_receiver_factors", "patch_image_factors", "receiver_image_factors", "IMAGE_PAIR_POINTS",
+           "IMAGE_GATHER_POINTS"]
 
 #: matched point pairs per (patch, image) pair whose view may be cut by a body, a mesh or the
 #: plate's edge
@@ -78,22 +86,45 @@ def image_polys(polys: np.ndarray, normals: np.ndarray, z_mm: float) -> tuple[np
     return ip, n
 
 
-def _on_plate(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    return np.all((p[..., :2] >= lo) & (p[..., :2] <= hi), axis=-1)
+def plate_face_rects(ir) -> list:
+    """The plate's two faces as one-sided mirrors (:class:`~lbscene.engine.light.geometry.Rectangle`
+    whose normal points to the side it reflects to): the top face up, the bottom face down."""
+    from .geometry import Rectangle
 
-
-def _plate_bounds(ir) -> tuple[np.ndarray, np.ndarray]:
     d = ir.diffuser
-    c = np.asarray(d.centre_mm, float)
-    h = np.asarray(d.size_mm, float) / 2
-    return c - h, c + h
+    cx, cy = (float(v) for v in d.centre_mm)
+    half = (float(d.size_mm[0]) / 2, float(d.size_mm[1]) / 2)
+    return [Rectangle(np.array([cx, cy, z]), np.array([0.0, 0.0, sign]), np.array([1.0, 0.0, 0.0]), half)
+            for z, sign in plate_faces_mm(ir)]
 
 
-def _cross_plane(a: np.ndarray, b: np.ndarray, z_mm: float) -> np.ndarray:
-    """Where the segments ``a → b`` (on either side of ``z = z_mm``) cross that plane."""
-    den = b[..., 2] - a[..., 2]
-    t = np.where(np.abs(den) > 1e-12, (z_mm - a[..., 2]) / np.where(np.abs(den) > 1e-12, den, 1.0), 0.5)
+def _face_image(polys: np.ndarray, normals: np.ndarray, face) -> tuple[np.ndarray, np.ndarray]:
+    """Quads ``polys`` (P, 4, 3) and their normals mirrored across the plane of ``face``."""
+    n = np.asarray(face.normal, float)
+    ip = mirror_points(polys, face.centre, n)
+    nn = np.asarray(normals, float)
+    return ip, nn - 2.0 * (nn @ n)[..., None] * n
+
+
+def _cross_face(a: np.ndarray, b: np.ndarray, face) -> np.ndarray:
+    """Where the segments ``a → b`` (on either side of the face's plane) cross that plane."""
+    n = np.asarray(face.normal, float)
+    den = (b - a) @ n
+    ok = np.abs(den) > 1e-12
+    t = np.where(ok, ((np.asarray(face.centre, float) - a) @ n) / np.where(ok, den, 1.0), 0.5)
     return a + t[..., None] * (b - a)
+
+
+def _local(p: np.ndarray, face) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates of points ``p`` (on the face's plane) along the face's ``u`` and ``v``."""
+    q = p - np.asarray(face.centre, float)
+    return q @ np.asarray(face.u, float), q @ np.asarray(face.v, float)
+
+
+def _on_face(p: np.ndarray, face, margin=0.0) -> np.ndarray:
+    """Bool per point ``p`` (on the face's plane): inside the face grown by ``margin``."""
+    x, y = _local(p, face)
+    return (np.abs(x) <= face.half[0] + margin) & (np.abs(y) <= face.half[1] + margin)
 
 
 def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris) -> np.ndarray:
@@ -111,19 +142,19 @@ def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris) 
     return ok
 
 
-def _uncertain(ca, r_a, cb_img, r_b, z_mm, lo, hi, bodies, tris):
+def _uncertain(ca, r_a, cb_img, r_b, face, bodies, tris):
     """Bool per pair (receiving point/patch ``ca`` of radius ``r_a``, image centre ``cb_img`` of
-    radius ``r_b``): may its lines meet the plate's edge, a body or a mesh (then sampled), or is
+    radius ``r_b``): may its lines meet the face's edge, a body or a mesh (then sampled), or is
     the centre line's verdict the whole pair's?"""
-    p = _cross_plane(ca, cb_img, z_mm)
+    p = _cross_face(ca, cb_img, face)
     m = np.maximum(r_a, r_b)
-    inner = np.all((p[:, :2] >= lo + m[:, None]) & (p[:, :2] <= hi - m[:, None]), axis=1)
-    outer = np.all((p[:, :2] >= lo - m[:, None]) & (p[:, :2] <= hi + m[:, None]), axis=1)
+    inner = _on_face(p, face, -m)
+    outer = _on_face(p, face, m)
     unc = outer & ~inner
     if tris is not None and len(tris):
         return unc | outer
     if bodies:
-        cb = _mirrored(cb_img, z_mm)
+        cb = mirror_points(cb_img, face.centre, face.normal)
         for near in pairs_near_bodies(bodies, ca, p, r_a, m):
             unc[near] = True
         for near in pairs_near_bodies(bodies, p, cb, m, r_b):
@@ -131,44 +162,68 @@ def _uncertain(ca, r_a, cb_img, r_b, z_mm, lo, hi, bodies, tris):
     return unc & outer
 
 
-def _visible_share(A, W, B_img, z_mm, lo, hi, bodies, tris):
+def _visible_share(A, W, B_img, face, bodies, tris):
     """Weighted share (per pair) of matched lines ``A[k, s] → B_img[k, s]`` (weights ``W[k, s]``)
-    that meet the face plane on the plate with both legs clear."""
+    that meet the face's plane on the face with both legs clear."""
     k, s = A.shape[:2]
     a = A.reshape(-1, 3)
     b = B_img.reshape(-1, 3)
-    p = _cross_plane(a, b, z_mm)
-    ok = _on_plate(p, lo, hi)
-    real = _mirrored(b, z_mm)
+    p = _cross_face(a, b, face)
+    ok = _on_face(p, face)
+    real = mirror_points(b, face.centre, face.normal)
     live = np.nonzero(ok)[0]
     if live.size:
         ok[live] = _legs_clear(a[live], real[live], p[live], bodies, tris)
     return (ok.reshape(k, s) * W).sum(axis=1)
 
 
-def patch_image_factors(patches: Patches, ir, bodies=(), tris=None) -> tuple[np.ndarray, np.ndarray]:
-    """``(F, cos)`` (P, P): the form factor from patch ``i`` to patch ``j``'s image in the plate's
-    face on their side, times the visible share :math:`V_{ij'}`, and the cosine of the centre
-    line's angle with the plate's normal (for :math:`R(θ)`); 0 for pairs on different sides.
-    ``bodies``: ``[body]`` that block light (:func:`lbscene.engine.light.radiosity.transport_bodies`);
-    ``tris``: mesh triangles."""
+def _candidates(ca: np.ndarray, r_a: np.ndarray, ic: np.ndarray, r_b: np.ndarray, face,
+                chunk: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+    """``(ii, jj)``: the pairs (point or patch ``ca[i]`` of radius ``r_a[i]``, image centre
+    ``ic[j]`` of radius ``r_b[j]``) whose centre line crosses the face's plane within the face
+    grown by the larger radius; no other pair's lines can meet the face."""
+    out_i, out_j = [], []
+    step = max(1, chunk // max(len(ic), 1))
+    for s0 in range(0, len(ca), step):
+        a = ca[s0:s0 + step]
+        p = _cross_face(a[:, None, :], ic[None, :, :], face)
+        m = np.maximum(r_a[s0:s0 + step, None], r_b[None, :])
+        ii, jj = np.nonzero(_on_face(p, face, m))
+        out_i.append(ii + s0)
+        out_j.append(jj)
+    if not out_i:
+        return np.zeros(0, int), np.zeros(0, int)
+    return np.concatenate(out_i), np.concatenate(out_j)
+
+
+def face_image_factors(patches: Patches, faces, bodies=(), tris=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, cos)`` (P, P): the form factor from patch ``i`` to patch ``j``'s images in the
+    one-sided mirrors ``faces`` (rectangles reflecting to the side their normal points to),
+    each times its visible share :math:`V_{ij'}`, summed over the faces, and the cosine of the
+    centre line's angle with the (last) face's normal (for an angle-dependent reflectance).
+    ``bodies``: ``[body]`` that block light
+    (:func:`lbscene.engine.light.radiosity.transport_bodies`); ``tris``: mesh triangles."""
     bodies = list(bodies)
     polys, nrm = patches.polys, patches.normals
     c = patches.centres
     n = len(c)
     F = np.zeros((n, n))
     C = np.zeros((n, n))
-    lo, hi = _plate_bounds(ir)
     diag = np.linalg.norm(polys[:, 2] - polys[:, 0], axis=1)
     hd = 0.5 * diag
-    for z, sign in plate_faces_mm(ir):
-        side = np.nonzero(sign * (c[:, 2] - z) > _NUDGE_MM)[0]
+    for face in faces:
+        fn = np.asarray(face.normal, float)
+        side = np.nonzero((c - np.asarray(face.centre, float)) @ fn > _NUDGE_MM)[0]
         if not side.size:
             continue
-        ip, inrm = image_polys(polys[side], nrm[side], z)
+        ip, inrm = _face_image(polys[side], nrm[side], face)
         ic = quad_centroids(ip)
-        f = polygon_form_factor(c[side] + _NUDGE_MM * nrm[side], nrm[side], ip, inrm)      # (S, S)
-        ii, jj = np.nonzero(f > 0)
+        ii, jj = _candidates(c[side], hd[side], ic, hd[side], face)
+        if not ii.size:
+            continue
+        vals = polygon_form_factor_pairs(c[side][ii] + _NUDGE_MM * nrm[side][ii], nrm[side][ii], ip[jj])
+        keep = vals > 0
+        ii, jj, vals = ii[keep], jj[keep], vals[keep]
         if not ii.size:
             continue
         # near pairs: the receiving patch averaged over 2 × 2 points
@@ -179,12 +234,10 @@ def patch_image_factors(patches: Patches, ir, bodies=(), tris=None) -> tuple[np.
             a, b = ii[near], jj[near]
             fp = polygon_form_factor_pairs(pts[a].reshape(-1, 3) + _NUDGE_MM * np.repeat(nrm[side][a], 4, axis=0),
                                            np.repeat(nrm[side][a], 4, axis=0), np.repeat(ip[b], 4, axis=0))
-            f[a, b] = (fp.reshape(-1, 4) * w[a]).sum(axis=1)
-        vals = f[ii, jj]
-        # the share of each pair's lines that meet the plate with both legs clear
-        p = _cross_plane(c[side][ii], ic[jj], z)
-        V = _on_plate(p, lo, hi).astype(float)
-        unc = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], z, lo, hi, bodies, tris)
+            vals[near] = (fp.reshape(-1, 4) * w[a]).sum(axis=1)
+        # the share of each pair's lines that meet the face with both legs clear
+        V = _on_face(_cross_face(c[side][ii], ic[jj], face), face).astype(float)
+        unc = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], face, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_PAIR_POINTS
@@ -192,20 +245,21 @@ def patch_image_factors(patches: Patches, ir, bodies=(), tris=None) -> tuple[np.
             pb = quad_r2_points(ip[jj[k]], m)[0][:, ::-1]
             pa = pa + _NUDGE_MM * nrm[side][ii[k]][:, None, :]
             pb = pb + _NUDGE_MM * inrm[jj[k]][:, None, :]
-            V[k] = _visible_share(pa, wa, pb, z, lo, hi, bodies, tris)
+            V[k] = _visible_share(pa, wa, pb, face, bodies, tris)
         d = c[side][ii] - ic[jj]
-        F[side[ii], side[jj]] = vals * V
-        C[side[ii], side[jj]] = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+        np.add.at(F, (side[ii], side[jj]), vals * V)
+        C[side[ii], side[jj]] = np.abs(d @ fn) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     return F, C
 
 
-def receiver_image_factors(patches: Patches, ir, P, N, gather, bodies=(), tris=None
-                           ) -> tuple[np.ndarray, np.ndarray]:
-    """``(G, cos)`` (M, P): receivers ``P`` (normals ``N``) gathering patch ``j``'s image in the
-    plate's face on their side — ``gather(image_polys, image_normals, rows)`` the form factors
-    from receivers ``rows`` (the model's, with its meter response) times the share of the image the receiver sees
-    on the plate past the bodies and meshes (:data:`IMAGE_GATHER_POINTS` points where it may be
-    cut) — and the cosine of the line to the image's centre with the plate's normal."""
+def face_receiver_factors(patches: Patches, faces, P, N, gather, bodies=(), tris=None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """``(G, cos)`` (M, P): receivers ``P`` (normals ``N``) gathering patch ``j``'s images in the
+    one-sided mirrors ``faces``, summed over the faces — ``gather(image_polys, image_normals,
+    rows)`` the form factors from receivers ``rows`` (the model's, with its meter response) times
+    the share of the image the receiver sees on the face past the bodies and meshes
+    (:data:`IMAGE_GATHER_POINTS` points where it may be cut) — and the cosine of the line to the
+    image's centre with the (last) face's normal."""
     bodies = list(bodies)
     P = np.asarray(P, float)
     N = np.asarray(N, float)
@@ -213,30 +267,50 @@ def receiver_image_factors(patches: Patches, ir, P, N, gather, bodies=(), tris=N
     c = patches.centres
     G = np.zeros((len(P), len(c)))
     C = np.zeros((len(P), len(c)))
-    lo, hi = _plate_bounds(ir)
     hd = 0.5 * np.linalg.norm(polys[:, 2] - polys[:, 0], axis=1)
-    for z, sign in plate_faces_mm(ir):
-        side = np.nonzero(sign * (c[:, 2] - z) > _NUDGE_MM)[0]
-        rx = np.nonzero(sign * (P[:, 2] - z) > _NUDGE_MM)[0]
+    for face in faces:
+        fc, fn = np.asarray(face.centre, float), np.asarray(face.normal, float)
+        side = np.nonzero((c - fc) @ fn > _NUDGE_MM)[0]
+        rx = np.nonzero((P - fc) @ fn > _NUDGE_MM)[0]
         if not side.size or not rx.size:
             continue
-        ip, inrm = image_polys(polys[side], nrm[side], z)
+        ip, inrm = _face_image(polys[side], nrm[side], face)
         ic = quad_centroids(ip)
-        g = gather(ip, inrm, rx)                                             # (R, S)
-        ii, jj = np.nonzero(g > 0)
+        # only the images some receiver's line to them can see on the face
+        _, cols = _candidates(P[rx], np.zeros(rx.size), ic, hd[side], face)
+        cols = np.unique(cols)
+        if not cols.size:
+            continue
+        g = gather(ip[cols], inrm[cols], rx)                                 # (R, S')
+        ii, jc = np.nonzero(g > 0)
         if not ii.size:
             continue
-        p = _cross_plane(P[rx][ii], ic[jj], z)
-        V = _on_plate(p, lo, hi).astype(float)
-        unc = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], z, lo, hi, bodies, tris)
+        jj = cols[jc]
+        V = _on_face(_cross_face(P[rx][ii], ic[jj], face), face).astype(float)
+        unc = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], face, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_GATHER_POINTS
             pb, wb = quad_r2_points(ip[jj[k]], m)
             pb = pb + _NUDGE_MM * inrm[jj[k]][:, None, :]
             pa = np.broadcast_to(P[rx][ii[k]][:, None, :], pb.shape)
-            V[k] = _visible_share(pa, wb, pb, z, lo, hi, bodies, tris)
+            V[k] = _visible_share(pa, wb, pb, face, bodies, tris)
         d = P[rx][ii] - ic[jj]
-        G[rx[ii], side[jj]] = g[ii, jj] * V
-        C[rx[ii], side[jj]] = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+        np.add.at(G, (rx[ii], side[jj]), g[ii, jc] * V)
+        C[rx[ii], side[jj]] = np.abs(d @ fn) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
     return G, C
+
+
+def patch_image_factors(patches: Patches, ir, bodies=(), tris=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, cos)`` (P, P): the form factor from patch ``i`` to patch ``j``'s image in the plate's
+    face on their side, times the visible share :math:`V_{ij'}`, and the cosine of the centre
+    line's angle with the plate's normal (for :math:`R(θ)`); 0 for pairs on different sides
+    (:func:`face_image_factors` on :func:`plate_face_rects`)."""
+    return face_image_factors(patches, plate_face_rects(ir), bodies, tris)
+
+
+def receiver_image_factors(patches: Patches, ir, P, N, gather, bodies=(), tris=None
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """``(G, cos)`` (M, P): receivers ``P`` (normals ``N``) gathering patch ``j``'s image in the
+    plate's face on their side (:func:`face_receiver_factors` on :func:`plate_face_rects`)."""
+    return face_receiver_factors(patches, plate_face_rects(ir), P, N, gather, bodies, tris)

@@ -49,6 +49,8 @@ SCENES = ("direct-shapes", "walls-05", "walls-45", "cavity-aperture", "cavity-wh
           "rough-diffuser-r010",
           # bright luminaire ceilings and mirrors
           "ceiling-85", "ceiling-85-spaced", "mirror-strip", "mirror-behind", "mirror-prism",
+          # the three mirror shapes in a bright room (their images of the surfaces)
+          "mirror-room-45",
           # plates: the declared total transmittance, opal plates, the plate in the inter-reflection
           "rough-cavity-45",
           # a glass plate reflecting the tubes into a white cavity
@@ -64,7 +66,7 @@ THRESHOLDS_PERCENT = {"direct-shapes": 0.5, "walls-05": 1.0, "walls-45": 1.0, "c
                       "rough-diffuser-r030": 2.0, "rough-diffuser-r010": 2.0,
                       # bright luminaire ceilings and mirrors
                       "ceiling-85": 1.0, "ceiling-85-spaced": 1.0, "mirror-strip": 1.0, "mirror-behind": 1.0,
-                      "mirror-prism": 1.0,
+                      "mirror-prism": 1.0, "mirror-room-45": 1.0,
                       # plates
                       "rough-cavity-45": 1.0, "glass-cavity-45": 1.0,
                       "opal-black": 1.0, "opal-grey": 1.0, "opal-cavity-45": 1.0,
