@@ -65,6 +65,15 @@ IES_NODE_FRAME = (-1.0, -1.0)
 IES_NODE_SCALE = 4.0 * math.pi / 177.83
 #: texels per point sensor side (each sensor bakes a k×k block that is averaged)
 SENSOR_BLOCK = 2
+#: scattering events a path may have in an opal plate's medium, on top of the job's
+#: ``max_bounces`` (which count surface bounces): the light a 2.5 mm plate of optical depth
+#: 3.0 (g 0.55) transmits or reflects has had 5 to 7 events on average, 0.2 % of it more than
+#: 32 and 5e-6 more than 64, per crossing; a path in a luminaire cavity crosses the plate
+#: several times
+OPAL_VOLUME_BOUNCES = 256
+#: transparent bounces (each crossing of an index-matched opal plate's faces is one, for the
+#: path and for its shadow rays)
+OPAL_TRANSPARENT_BOUNCES = 256
 
 
 def band_groups(count: int, per_pass: int = 3) -> list[list[int]]:
@@ -266,6 +275,16 @@ class BlenderScene:
         c.transmission_bounces = b
         c.volume_bounces = 0
         c.transparent_max_bounces = 64
+        if any(s.model == "opal" for s in self.job.sheets):
+            # an opal plate's medium: its scattering events (and, behind refracting faces, the
+            # refractions and total internal reflections) come on top of the job's surface bounces
+            v = OPAL_VOLUME_BOUNCES
+            c.volume_bounces = v
+            c.max_bounces = b + v
+            if any(s.model == "opal" and (s.ior or 1.0) > 1.0 + 1e-9 for s in self.job.sheets):
+                c.glossy_bounces = b + v
+                c.transmission_bounces = b + v
+            c.transparent_max_bounces = OPAL_TRANSPARENT_BOUNCES
         c.min_light_bounces = 0
         c.min_transparent_bounces = 0
         c.pixel_filter_type = "BOX"
@@ -650,7 +669,11 @@ class BlenderScene:
         nb = _Nodes(nt)
         out = nb.new("ShaderNodeOutputMaterial")
         t = np.asarray(sheet.transmittance, float)
-        if sheet.model == "glass":
+        if sheet.model == "opal":
+            obj = self._opal_slab(sheet, nb, out)
+            # a dense medium lit from outside: distance sampling
+            m.cycles.volume_sampling = "DISTANCE"
+        elif sheet.model == "glass":
             obj = self._slab_object(sheet)
             glass = nb.new("ShaderNodeBsdfGlass", distribution="GGX")
             glass.inputs["Roughness"].default_value = sheet.roughness
@@ -725,6 +748,39 @@ class BlenderScene:
         obj.data.materials.append(m)
         obj["lbscene_role"] = sheet.role
         self._add_to_group(sheet.group, obj)
+
+    def _opal_slab(self, sheet: TransmissiveSheet, nb: _Nodes, out):
+        """An opal plate: the closed slab (:meth:`_slab_object`) with a smooth Glass BSDF of the
+        faces' ``ior`` (no surface shader for ior 1: the faces do not exist for any ray, shadow
+        rays included) and the medium as its volume: Volume Scatter (Henyey–Greenstein,
+        ``anisotropy``; Cycles' σ_s = density × colour, per metre: the Blender unit) plus, when
+        the sheet absorbs, Volume Absorption (σ_a = density × (1 − colour), the colour per band)."""
+        obj = self._slab_object(sheet)
+        n = sheet.ior or 1.0
+        if n > 1.0 + 1e-9:
+            glass = nb.new("ShaderNodeBsdfGlass", distribution="GGX")
+            glass.inputs["Roughness"].default_value = 0.0
+            glass.inputs["IOR"].default_value = float(n)
+            glass.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+            nb.link(glass.outputs[0], out.inputs["Surface"])
+        scatter = nb.new("ShaderNodeVolumeScatter")
+        if hasattr(scatter, "phase"):
+            scatter.phase = "HENYEY_GREENSTEIN"
+        scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        scatter.inputs["Density"].default_value = float(sheet.scattering_per_mm) / MM
+        scatter.inputs["Anisotropy"].default_value = float(sheet.anisotropy)
+        volume = scatter.outputs[0]
+        a = None if sheet.absorption_per_mm is None else np.asarray(sheet.absorption_per_mm, float)
+        if a is not None and a.max() > 0:
+            absorb = nb.new("ShaderNodeVolumeAbsorption")
+            absorb.inputs["Density"].default_value = float(a.max()) / MM
+            self._colour_sockets.append((absorb.inputs["Color"], 1.0 - a / a.max(), "factor"))
+            add = nb.new("ShaderNodeAddShader")
+            nb.link(scatter.outputs[0], add.inputs[0])
+            nb.link(absorb.outputs[0], add.inputs[1])
+            volume = add.outputs[0]
+        nb.link(volume, out.inputs["Volume"])
+        return obj
 
     def _slab_object(self, sheet: TransmissiveSheet):
         """Extrude the sheet's triangles by ``thickness_mm`` along their normals into a closed slab."""

@@ -23,8 +23,9 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
   analytic model reads them — angular profile (IES files in two dimensions
   through Cycles' own IES parser, C = 0 along the lamp's axis), tube-end
   falloff (the tube's surface weighted along its axis), spectral filter,
-  diffuser (a clear sheet with Fresnel angular transmittance and a Lambertian
-  fraction), aperture occlusion (occluders become geometry that blocks
+  diffuser (an opal plate as a slab of a scattering medium between its faces, as the
+  Mitsuba truth draws it: :mod:`lbscene.bakers.opal_slab`; any other plate as a clear sheet
+  with Fresnel angular transmittance), aperture occlusion (occluders become geometry that blocks
   *every* lamp), reflector (the lamp's surface mirrored across the mirror,
   radiance × the mirror's reflectance, shining only through the mirror's
   rectangle: the image method; the lamp's own body is in the image's way, as
@@ -405,8 +406,25 @@ def _lamp_bodies_off(ir, lighting: str, effects: dict) -> list[JobMesh]:
     return meshes
 
 
+def _opal_medium(T, fd: float, ior: float | None, thickness_mm: float):
+    """:func:`~lbscene.bakers.opal_slab.opal_slab_medium`, kept for the process (every job of a
+    booth asks for the same plate)."""
+    from .opal_slab import opal_slab_medium
+
+    key = (tuple(round(float(x), 9) for x in T), round(float(fd), 9), ior, round(float(thickness_mm), 9))
+    hit = _OPAL_MEDIA.get(key)
+    if hit is None:
+        hit = _OPAL_MEDIA[key] = opal_slab_medium(T, fd, ior, thickness_mm)
+    return hit
+
+
+_OPAL_MEDIA: dict = {}
+
+
 def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[TransmissiveSheet]:
-    """The diffuser plate as a thin transmissive sheet, when the ``diffuser`` effect is on."""
+    """The diffuser plate, when the ``diffuser`` effect is on: an opal (``lambertian``) plate as a
+    volumetric slab (``model='opal'``, :mod:`lbscene.bakers.opal_slab`), any other as a thin
+    transmissive sheet."""
     dp = _effect(effects, "diffuser")
     if dp is None or ir.diffuser is None:
         return []
@@ -431,10 +449,36 @@ def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[Tran
                      f"at 60°) and its lobe (90 % within "
                      f"{float(plate_slab(ir).lobe_deg(1.0, 0.9)):.2g}° at normal incidence) are not "
                      f"in the bake")
+    medium = None
+    if sc.get("type") == "lambertian" and fd > 0:
+        try:
+            medium = _opal_medium(T, float(fd), d.ior, d.thickness_mm)
+        except ValueError as exc:
+            notes.append(f"opal diffuser: {exc}; drawn as a thin sheet instead (transparent and "
+                         f"translucent parts: no entry law, no diffuse reflection)")
+    if medium is not None:
+        notes.append(f"opal diffuser: a {d.thickness_mm:g} mm slab of a scattering medium (optical depth "
+                     f"{medium.optical_depth:.3g}, HG g {medium.anisotropy:.3f}"
+                     + (f", faces of ior {d.ior:g}" if d.ior is not None and d.ior > 1 else
+                        ", faces matched to the air") + ")")
+        if np.ptp(T) > 1e-9:
+            notes.append("opal diffuser: its transmittance varies over wavelength; the medium scatters "
+                         "as fitted at the most transmissive band and absorbs in the others (the diffuse "
+                         "fraction holds at that band)")
+        if sc.get("reflectance") is not None:
+            notes.append("opal diffuser: its declared reflectance is not in the bake (the medium does "
+                         "not absorb what the transmittance leaves: R = 1 - T)")
+        absorb = medium.absorption_per_mm if any(a > 0 for a in medium.absorption_per_mm) else None
+        return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
+                                  transmittance=tuple(float(x) for x in T), ior=d.ior,
+                                  diffuse_fraction=float(fd), model="opal", thickness_mm=d.thickness_mm,
+                                  scattering_per_mm=medium.scattering_per_mm,
+                                  anisotropy=medium.anisotropy, absorption_per_mm=absorb,
+                                  group=lum_group)]
     if fd > 0:
         notes.append(f"diffuser diffuse fraction {float(fd):g}: the scattered light leaves the sheet with "
-                     f"the opal exit law; its entry weight (1 - F(θi)) is not in the bake (the model has "
-                     f"it); the plate reflects as a clear plate's faces do")
+                     f"the opal exit law; its entry weight (1 - F(θi)) and the diffuse reflection are not "
+                     f"in the bake (the model has them); the plate reflects as a clear plate's faces do")
     from lbscene.engine.light.plates import reference_transmittance
 
     return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
@@ -560,6 +604,10 @@ def lighting_job(ir, lighting: str, *, quality: str = "preview", samples: int | 
     meshes += mirrors
     meshes += _lamp_bodies_off(ir, lighting, effects)
     sheets = _diffuser_sheet(ir, effects, lum_group, notes)
+    if any(s.model == "opal" and (s.ior or 1.0) > 1.0 for s in sheets) and \
+            any(e.type == "points" for e in emitters):
+        notes.append("opal diffuser: its faces refract, which stops Cycles' shadow rays, and no path "
+                     "hits a point lamp: point lamps send no light through the plate in the bake")
 
     products = []
     if environment:

@@ -31,7 +31,8 @@ Conventions
 versions in :data:`READABLE_JOB_VERSIONS` still load (version 2 only added
 fields: a version 1 job means what it meant; version 3 made an area emitter hidden from the
 camera a black body to camera rays instead of one they pass through, and a thin sheet with an
-``ior`` reflect, and older jobs are rendered that way too);
+``ior`` reflect, and older jobs are rendered that way too; version 4 added the ``opal`` sheet,
+a volumetric slab);
 :attr:`BakeJob.content_hash` (sha256 of the canonical JSON) identifies a job
 for the bake cache.
 
@@ -91,11 +92,11 @@ __all__ = [
     "canonical_json",
 ]
 
-JOB_VERSION = 3
+JOB_VERSION = 4
 #: versions this lbscene loads (2 added IES profiles, axial weights and windows on area emitters;
 #: 3: an area emitter with ``visible_to_camera`` False stops camera rays as a black body, a thin
-#: sheet with an ``ior`` reflects)
-READABLE_JOB_VERSIONS = (1, 2, 3)
+#: sheet with an ``ior`` reflects; 4: the ``opal`` sheet model, a scattering medium in a slab)
+READABLE_JOB_VERSIONS = (1, 2, 3, 4)
 JOB_KIND = "lbscene.bake_job"
 
 Vec3 = tuple[float, float, float]
@@ -401,7 +402,7 @@ class JobFilter(StrictModel):
 
 
 class TransmissiveSheet(StrictModel):
-    """A diffuser plate or filter pane.
+    r"""A diffuser plate or filter pane.
 
     ``model='thin'`` (default): a non-refracting sheet.  ``transmittance`` is the
     plate's total transmittance at normal incidence (surface reflections included);
@@ -417,7 +418,8 @@ class TransmissiveSheet(StrictModel):
     goes straight through, so Cycles samples point lamps behind it directly
     (shadow rays are attenuated, not blocked); ``roughness`` is recorded but
     only blurs in the ``glass`` model (for the seed's 0.04, α = 0.0016: a spread
-    far below a degree).
+    far below a degree).  A shader sees one direction only: a thin sheet has no
+    entry law and no diffuse reflection (what an opal plate needs: ``opal``).
 
     ``model='glass'``: a closed slab of ``thickness_mm`` with Cycles' Glass BSDF
     (roughness, ior).  Physically complete but a refracting surface blocks
@@ -425,6 +427,16 @@ class TransmissiveSheet(StrictModel):
     (caustics): use area emitters and many samples.  The absorption is the
     declared ``transmittance`` over ``reference_transmittance`` (the
     non-absorbing plate's total at normal incidence; default the clear slab's).
+
+    ``model='opal'`` (job version 4): an opal plate as the scattering layer it is, as the
+    Mitsuba truth draws it: a closed slab of ``thickness_mm`` (mid-plane on the sheet) whose
+    faces are a smooth dielectric of ``ior`` (no surface at all for ``ior`` 1 or None: shadow
+    rays cross it, attenuated by the medium, and reach the lamps from every scattering event),
+    filled with a homogeneous medium: scattering coefficient ``scattering_per_mm``
+    :math:`σ_s`, Henyey–Greenstein ``anisotropy`` :math:`g`, and per band
+    ``absorption_per_mm`` :math:`σ_a` (None: none).  :func:`lbscene.bakers.opal_slab.opal_slab_medium`
+    makes them from the declared total transmittance and diffuse fraction;
+    ``transmittance`` and ``diffuse_fraction`` are recorded, not used.
     """
 
     id: JobId
@@ -435,9 +447,14 @@ class TransmissiveSheet(StrictModel):
     ior: float | None = Field(1.52, ge=1.0, le=3.0)
     roughness: float = Field(0.0, ge=0, le=1)
     diffuse_fraction: float = Field(0.0, ge=0, le=1)
-    model: Literal["thin", "glass"] = "thin"
+    model: Literal["thin", "glass", "opal"] = "thin"
     thickness_mm: float = Field(4.0, gt=0)
     reference_transmittance: float | None = Field(None, gt=0, le=1)
+    #: ``opal``: the medium's scattering coefficient σ_s (mm⁻¹), HG asymmetry g and absorption
+    #: coefficient σ_a per band (mm⁻¹; None: a non-absorbing medium)
+    scattering_per_mm: float | None = Field(None, gt=0)
+    anisotropy: float = Field(0.0, gt=-1, lt=1)
+    absorption_per_mm: Bands | None = None
     group: str | None = None
 
     @field_validator("transmittance")
@@ -446,6 +463,19 @@ class TransmissiveSheet(StrictModel):
         if any(not (0.0 <= x <= 1.0) for x in v):
             raise ValueError("transmittance band values must lie in [0, 1]")
         return v
+
+    @field_validator("absorption_per_mm")
+    @classmethod
+    def _absorption(cls, v):
+        if v is not None and any(not (x >= 0.0) for x in v):
+            raise ValueError("absorption_per_mm band values must be >= 0")
+        return v
+
+    @model_validator(mode="after")
+    def _opal(self):
+        if self.model == "opal" and self.scattering_per_mm is None:
+            raise ValueError("an 'opal' sheet needs scattering_per_mm (its medium)")
+        return self
 
 
 # --------------------------------------------------------------------------- products

@@ -320,46 +320,14 @@ def test_band_irradiance_of_a_point_lamp_follows_its_spectrum(tmp_path):
 
 # --------------------------------------------------------------------------- opal layer, volpath
 
-def _hg_layer_exit_normal(tau, g, n_nodes=32):
-    """A plane-parallel, non-absorbing Henyey–Greenstein layer of optical depth ``tau`` without
-    Fresnel faces, by adding–doubling (azimuthal mode 0, Gauss–Radau nodes in μ with μ = 1
-    among them): ``(μ_i, f(μ_i → straight through))``, the bidirectional transmittance
-    (sr⁻¹, scattered light only) from incidence μ_i to the exit along the normal."""
-    import scipy.special as sp
-
-    c = np.zeros(n_nodes + 1)
-    c[n_nodes - 1], c[n_nodes] = 1.0, -1.0                 # Radau nodes with x = 1 fixed
-    x = np.sort(np.polynomial.legendre.legroots(c).real)
-    x = np.r_[x[np.abs(x - 1) > 1e-8], 1.0]
-    V = np.polynomial.legendre.legvander(x, n_nodes - 1).T
-    w = 0.5 * np.linalg.solve(V, np.r_[2.0, np.zeros(n_nodes - 1)])
-    mu = 0.5 * (x + 1.0)
-    L = 2 * n_nodes - 1
-    l = np.arange(L + 1)
-    P = np.array([sp.eval_legendre(k, mu) for k in l])     # (L+1, N)
-    coef = (2 * l + 1) * g ** l
-    same = np.einsum("l,li,lj->ij", coef, P, P)            # phase kernel, both directions down
-    back = np.einsum("l,li,lj->ij", coef * (-1.0) ** l, P, P)
-    k = int(np.ceil(np.log2(tau / 1e-7)))
-    dt = tau / 2 ** k
-    T = np.diag(np.exp(-dt / mu)) + dt / (2 * mu)[:, None] * same * w[None, :]
-    R = dt / (2 * mu)[:, None] * back * w[None, :]
-    eye = np.eye(n_nodes)
-    for _ in range(k):                                     # doubling: two equal layers on each other
-        C = np.linalg.inv(eye - R @ R)
-        TC = T @ C
-        R = R + TC @ R @ T
-        T = TC @ T
-    Td = T - np.diag(np.exp(-tau / mu))                    # scattered part (radiance operator)
-    return mu, Td[-1, :] / (mu * w) / (2 * np.pi)
-
-
 def _layer_under_a_small_panel(tmp_path, monkeypatch, thickness_mm, *, shifted, tau=3.59, g=0.55):
     """A booth's opal layer (null faces, HG medium of optical depth ``tau``, volpath; mid-plane at
     z 600 mm) under a 20 × 20 mm panel at z 650 mm: ``(measured, σ, expected)`` radiance seen
     straight up through the layer under the panel, relative to the panel's own.  Expected:
     e^{-τ} plus the scattered ∫ f(μ_i → normal) μ_i dω_i over the panel, f from the
-    adding–doubling solution above (an infinitely wide, laterally uniform layer).  ``shifted``:
+    adding–doubling solution of :mod:`lbscene.bakers.opal_slab` (an infinitely wide, laterally
+    uniform layer; held to closed forms and a Monte Carlo simulation in
+    ``tests/bakers/test_opal_slab.py``).  ``shifted``:
     rendered as the truth renders a booth (:meth:`MitsubaTruth.render_shift_mm`), else in the
     booth's own coordinates."""
     import mitsuba as mi
@@ -389,7 +357,9 @@ def _layer_under_a_small_panel(tmp_path, monkeypatch, thickness_mm, *, shifted, 
 
     lamp, _ = radiance(1e-9)                       # the panel seen through a clear layer
     got, se = radiance(tau / thickness_mm)
-    mu, f = _hg_layer_exit_normal(tau, g)
+    from lbscene.bakers.opal_slab import scattered_transmittance_to_normal
+
+    mu, f = scattered_transmittance_to_normal(tau, g)
     n = 200                                        # the panel from the layer's top face
     s = -10 + 20 * (np.arange(n) + 0.5) / n
     X, Y = np.meshgrid(s, s, indexing="ij")
