@@ -37,14 +37,16 @@ def _fresnel(mu_out, n):
 
 
 def _monte_carlo(tau, g, n, cos_theta, photons=400_000, seed=1):
-    """(T, R, σ_T): photons through the slab; directions by their cosine to the downward normal."""
+    """(T, R, σ_T): photons through the slab; directions by their cosine to the downward normal.
+    ``cos_theta`` ``"diffuse"``: incidence from a uniform sky (cosine-weighted directions)."""
     rng = np.random.default_rng(seed)
-    F0, mu0 = _fresnel(np.array(cos_theta), n) if n > 1 else (0.0, cos_theta)
+    c0 = np.sqrt(rng.random(photons)) if isinstance(cos_theta, str) else np.full(photons, float(cos_theta))
+    F0, mu0 = _fresnel(c0, n) if n > 1 else (np.zeros(photons), c0)
     enter = rng.random(photons) >= F0
     R = float((~enter).sum())
     T = 0.0
     z = np.zeros(int(enter.sum()))
-    mu = np.full(len(z), float(mu0))
+    mu = mu0[enter].copy()
     while len(z):
         zn = z + mu * -np.log(rng.random(len(z)))
         below, above = zn >= tau, zn <= 0.0
