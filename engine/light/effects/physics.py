@@ -328,6 +328,19 @@ class ForwardContext:
         return self.memo("pastbody", (es.points_mm, rx, np.asarray([es.line_radius_mm]), *sig), compute)
 
 
+def _ring_normals(es: "EmitterSet", lines: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(axis, normals (lines, 3))``: a tube slice's unit axis (mirrored by
+    ``es.direction_map`` for an image) and the outward normals of ``lines`` equally spaced lines
+    on its surface."""
+    a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
+    a = np.asarray(a, float) / np.linalg.norm(a)
+    e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    phi = 2.0 * np.pi * (np.arange(lines) + 0.5) / lines
+    return a, np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+
+
 def footprint_fraction(es: "EmitterSet", rx: np.ndarray, rect, lines: int) -> np.ndarray:
     """(M, N) share of each tube slice's light toward each receiver that crosses ``rect``
     (outside its opening): a mirror's window for an image, an occluder for the lamp.
@@ -363,11 +376,7 @@ def footprint_fraction(es: "EmitterSet", rx: np.ndarray, rect, lines: int) -> np
             soft = np.clip((np.minimum(x + w, H) - np.maximum(x - w, -H)) / (2.0 * w), 0.0, 1.0)
         return np.where(w > 1e-9, soft, (np.abs(x) <= H).astype(float))
 
-    a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
-    a = np.asarray(a, float) / np.linalg.norm(a)
-    e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
+    a, ring = _ring_normals(es, lines)
     c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
     u, v = np.asarray(rect.u, float), np.asarray(rect.v, float)
     r = float(es.line_radius_mm)
@@ -376,9 +385,7 @@ def footprint_fraction(es: "EmitterSet", rx: np.ndarray, rect, lines: int) -> np
     hR = (rx - c) @ n
     num = np.zeros(d.shape[:2])
     den = np.zeros(d.shape[:2])
-    for k in range(lines):
-        phi = 2.0 * np.pi * (k + 0.5) / lines
-        nk = np.cos(phi) * e1 + np.sin(phi) * e2
+    for nk in ring:
         w = np.clip(d @ nk, 0.0, None)
         P = pts + r * nk
         D = rx[:, None, :] - P[None, :, :]
@@ -412,17 +419,11 @@ def _tube_ring_average(es: "EmitterSet", rx: np.ndarray, lines: int, empty: floa
     (``es.line_radius_mm`` about its axis, mirrored by ``es.direction_map`` for an image),
     each weighted by its Lambertian ``max(0, n·u)`` toward the receiver (the common 1/|d|
     cancels); ``empty`` where no line faces the receiver."""
-    a = es.line_axis if es.direction_map is None else es.direction_map(es.line_axis)
-    a = a / np.linalg.norm(a)
-    e1 = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
+    _, ring = _ring_normals(es, lines)
     d = np.asarray(rx, float)[:, None, :] - es.points_mm[None, :, :]
     num = np.zeros(d.shape[:2])
     den = np.zeros(d.shape[:2])
-    for k in range(lines):
-        phi = 2.0 * np.pi * (k + 0.5) / lines
-        nk = np.cos(phi) * e1 + np.sin(phi) * e2
+    for nk in ring:
         w = np.clip(d @ nk, 0.0, None)
         num += w * per_line(es.points_mm + es.line_radius_mm * nk)
         den += w
