@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import only, rect
+from conftest import load_noise, load_points, only, rect
 from test_opal_slab import _monte_carlo
 
 pytestmark = pytest.mark.bake
@@ -147,7 +147,6 @@ def _slab_job(name, emitters, points, ior, samples):
 def _bake(job, out):
     from lbscene.bakers.executor import BakeTask, run_tasks
 
-    from conftest import load_noise, load_points
 
     [r] = run_tasks([BakeTask(job, out)], progress=False)
     assert r.status == "baked", (r.error, r.log_tail)
