@@ -47,6 +47,7 @@ lighting name into a self-contained :class:`~lbscene.bakers.job.BakeJob`:
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -409,16 +410,15 @@ def _lamp_bodies_off(ir, lighting: str, effects: dict) -> list[JobMesh]:
 def _opal_medium(T, fd: float, ior: float | None, thickness_mm: float):
     """:func:`~lbscene.bakers.opal_slab.opal_slab_medium`, kept for the process (every job of a
     booth asks for the same plate)."""
+    return _opal_medium_cached(tuple(round(float(x), 9) for x in T), round(float(fd), 9), ior,
+                               round(float(thickness_mm), 9))
+
+
+@functools.lru_cache(maxsize=32)
+def _opal_medium_cached(T: tuple, fd: float, ior: float | None, thickness_mm: float):
     from .opal_slab import opal_slab_medium
 
-    key = (tuple(round(float(x), 9) for x in T), round(float(fd), 9), ior, round(float(thickness_mm), 9))
-    hit = _OPAL_MEDIA.get(key)
-    if hit is None:
-        hit = _OPAL_MEDIA[key] = opal_slab_medium(T, fd, ior, thickness_mm)
-    return hit
-
-
-_OPAL_MEDIA: dict = {}
+    return opal_slab_medium(np.asarray(T, float), fd, ior, thickness_mm)
 
 
 def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[TransmissiveSheet]:

@@ -43,7 +43,7 @@ import numpy as np
 from .geometry import (Patches, bodies_block, mirror_points, pairs_near_bodies, polygon_form_factor_pairs,
                        quad_centroids, quad_r2_points, quad_subpoints, segments_blocked)
 
-__all__ = ["plate_faces_mm", "plate_face_rects", "plate_geometry_key", "image_polys", "face_image_factors",
+__all__ = ["plate_faces_mm", "plate_face_rects", "plate_geometry_key", "face_image_factors",
            "face_receiver_factors", "patch_image_factors", "receiver_image_factors", "IMAGE_PAIR_POINTS",
            "IMAGE_GATHER_POINTS"]
 
@@ -69,21 +69,6 @@ def plate_geometry_key(ir) -> np.ndarray:
     centre and size (mm)."""
     d = ir.diffuser
     return np.array([d.z_mm, d.thickness_mm, *d.centre_mm, *d.size_mm], float)
-
-
-def _mirrored(q: np.ndarray, z_mm: float) -> np.ndarray:
-    """Points ``q`` (..., 3) mirrored across the plane ``z = z_mm``."""
-    out = np.array(q, float, copy=True)
-    out[..., 2] = 2.0 * z_mm - out[..., 2]
-    return out
-
-
-def image_polys(polys: np.ndarray, normals: np.ndarray, z_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Quads ``polys`` (P, 4, 3) and their normals mirrored across the plane ``z = z_mm``."""
-    ip = _mirrored(polys, z_mm)
-    n = np.array(normals, float, copy=True)
-    n[..., 2] = -n[..., 2]
-    return ip, n
 
 
 def plate_face_rects(ir) -> list:

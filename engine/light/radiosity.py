@@ -1250,18 +1250,20 @@ class RadiosityTransport:
                     self.ctx.cache[ck] = cached_array(
                         "mirror_image_factors", (self.patches.polys, self.patches.normals, self.blockers, geo),
                         self._body_sig + ("mirror-images-1", IMAGE_PAIR_POINTS, IMAGE_NEAR_FACTOR),
-                        lambda: self._face_images(face_image_factors, faces),
+                        lambda: self._face_images(
+                            lambda f, others: face_image_factors(self.patches, [f], others, self.blockers)[0],
+                            faces, (len(self.patches), len(self.patches))),
                         shape=(len(self.patches), len(self.patches)))
                 out.append(self.ctx.cache[ck])
             self._mirror_F = out
         return self._mirror_F
 
-    def _face_images(self, factors, faces) -> np.ndarray:
-        """Image form factors summed over ``faces``, each past every body but itself."""
-        F = np.zeros((len(self.patches), len(self.patches)))
+    def _face_images(self, factors, faces, shape) -> np.ndarray:
+        """``factors(face, bodies)`` summed over ``faces``, each past every body but itself (a
+        mirror does not hide its own images)."""
+        F = np.zeros(shape)
         for f in faces:
-            others = [b for _, b in self.bodies if b is not f]
-            F += factors(self.patches, [f], others, self.blockers)[0]
+            F += factors(f, [b for _, b in self.bodies if b is not f])
         return F
 
     @property
@@ -1436,11 +1438,10 @@ class RadiosityTransport:
             geo = np.array([np.r_[f.centre, f.normal, f.u, f.half] for f in faces], float)
 
             def compute(faces=faces):
-                G = np.zeros((len(P), len(self.patches)))
-                for f in faces:
-                    others = [b for _, b in self.bodies if b is not f]
-                    G += face_receiver_factors(self.patches, [f], P, N, gather, others, self.blockers)[0]
-                return G
+                return self._face_images(
+                    lambda f, others: face_receiver_factors(self.patches, [f], P, N, gather, others,
+                                                            self.blockers)[0],
+                    faces, (len(P), len(self.patches)))
 
             out.append(self.ctx.memo("mirror_images_rx", (P, N, m, self.patches.polys, self._body_digest, geo),
                                      compute, limit=32))

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from lbscene.engine.light.geometry import Capsule, Patches, polygon_form_factor, quad_areas
-from lbscene.engine.light.plate_mirror import image_polys, patch_image_factors, receiver_image_factors
+from lbscene.engine.light.geometry import Capsule, Patches, Rectangle, polygon_form_factor, quad_areas
+from lbscene.engine.light.plate_mirror import _face_image, patch_image_factors, receiver_image_factors
 
 N_GLASS = 1.52
 H_MM = 100.0           # the ceiling above the plate's top face
@@ -67,7 +67,9 @@ def _R(cos):
 
 def test_image_polygons_mirror_points_and_normals_across_the_plane():
     p = np.array([[[0.0, 0, 10], [1, 0, 10], [1, 1, 12], [0, 1, 12]]])
-    ip, n = image_polys(p, np.array([[0.0, 0.6, -0.8]]), 2.0)
+    face = Rectangle(centre=np.array([5.0, -3.0, 2.0]), normal=np.array([0.0, 0.0, 1.0]),
+                     u=np.array([1.0, 0.0, 0.0]), half=(1.0, 1.0))
+    ip, n = _face_image(p, np.array([[0.0, 0.6, -0.8]]), face)
     assert ip[0, :, 2].tolist() == [-6.0, -6.0, -8.0, -8.0]
     assert ip[0, :, :2].tolist() == p[0, :, :2].tolist()
     assert n[0].tolist() == [0.0, 0.6, 0.8]

@@ -273,11 +273,11 @@ class ForwardContext:
 
         A tube slice of radius r > 0 is not its axis: its light toward a receiver leaves
         the arc it sees, so for a rectangle within :data:`TUBE_RING_REACH` radii the fraction
-        is the share of that arc's light the rectangle meets (:func:`footprint_fraction`).
-        ``ring`` is kept for callers that name it; the arc is always cut into
-        :data:`FOOTPRINT_RING` elements.
+        is the share of that arc's light the rectangle meets (:func:`footprint_fraction`, the
+        arc cut into :data:`FOOTPRINT_RING` elements).  With ``ring`` the footprints (of
+        ``ring`` elements) are taken at every distance: a mirror's window, whose edge
+        shapes the image however far from the tube it stands.
         """
-        ring = TUBE_RING if ring is None else int(ring)
         from lbscene.engine.light.geometry import apart_from_plane, segment_fraction_hitting
 
         if apart_from_plane(es.points_mm, es.half_step, rx, rect, es.line_radius_mm or 0.0):
@@ -287,15 +287,15 @@ class ForwardContext:
         key = (es.points_mm, half, rx, *rect.key_arrays)
         # the tube's width only shifts a shadow edge noticeably when the rectangle is within a
         # few radii of it (apertures, slots); farther away its axis stands for it
-        close = (es.line_axis is not None and es.line_radius_mm > 0 and
-                 abs(float((es.points_mm.mean(axis=0) - rect.centre) @ rect.normal))
-                 < TUBE_RING_REACH * es.line_radius_mm)
+        tube = es.line_axis is not None and es.line_radius_mm > 0
+        close = tube and (ring is not None or abs(float((es.points_mm.mean(axis=0) - rect.centre) @ rect.normal))
+                          < TUBE_RING_REACH * es.line_radius_mm)
         if not close:
             return self.memo("hit", key,
                              lambda: segment_fraction_hitting(es.points_mm, es.half_step, rx, rect))
-
-        return self.memo("hit:footprint", key + (np.asarray([es.line_radius_mm, FOOTPRINT_RING]),),
-                         lambda: footprint_fraction(es, rx, rect, FOOTPRINT_RING))
+        lines = FOOTPRINT_RING if ring is None else int(ring)
+        return self.memo("hit:footprint", key + (np.asarray([es.line_radius_mm, lines]),),
+                         lambda: footprint_fraction(es, rx, rect, lines))
 
     def fraction_past_body(self, es: "EmitterSet", rx: np.ndarray, body) -> np.ndarray:
         """(M, N) share of each emitter point's light toward each receiver that ``body`` (a
@@ -381,29 +381,31 @@ def footprint_fraction(es: "EmitterSet", rx: np.ndarray, rect, lines: int) -> np
     u, v = np.asarray(rect.u, float), np.asarray(rect.v, float)
     r = float(es.line_radius_mm)
     pts = np.asarray(es.points_mm, float)
-    d = rx[:, None, :] - pts[None, :, :]
-    hR = (rx - c) @ n
-    num = np.zeros(d.shape[:2])
-    den = np.zeros(d.shape[:2])
+    # everything in the rectangle's frame: each (M, N) quantity is a difference of the
+    # receivers' and the line points' coordinates along n, u, v and the line's normal
+    frame = np.stack([n, u, v])
+    Rn, Ru, Rv = ((rx - c) @ frame.T).T
+    Qn, Qu, Qv = ((pts - c) @ frame.T).T
+    hn, hu, hv = frame @ half
+    num = np.zeros((len(rx), len(pts)))
+    den = np.zeros_like(num)
     for nk in ring:
-        w = np.clip(d @ nk, 0.0, None)
-        P = pts + r * nk
-        D = rx[:, None, :] - P[None, :, :]
-        hP = (P - c) @ n
-        Dn = hR[:, None] - hP[None, :]
+        w = np.clip((rx @ nk)[:, None] - (pts @ nk)[None, :], 0.0, None)
+        kn, ku, kv = r * (frame @ nk)
+        tn, tu, tv = frame @ (np.cross(a, nk) * (np.pi * r / lines))
+        hP = Qn + kn                                       # the line's height over the plane
+        Dn = Rn[:, None] - hP[None, :]
+        Du = Ru[:, None] - (Qu + ku)[None, :]
+        Dv = Rv[:, None] - (Qv + kv)[None, :]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             s = np.where(np.abs(Dn) > 1e-12, -hP[None, :] / Dn, -1.0)
             ok = (s > 1e-9) & (s < 1.0 - 1e-9)
-            X = P[None, :, :] + s[..., None] * D - c
-            xu, xv = X @ u, X @ v
-
-            def foot(delta):
-                return (1.0 - s)[..., None] * (delta - D * ((delta @ n) / Dn)[..., None])
-
-            fa = foot(half)
-            ft = foot(np.cross(a, nk) * (np.pi * r / lines))
-            wu = np.abs(fa @ u) + np.abs(ft @ u)
-            wv = np.abs(fa @ v) + np.abs(ft @ v)
+            xu = (Qu + ku)[None, :] + s * Du
+            xv = (Qv + kv)[None, :] + s * Dv
+            # the footprint's half sizes: the slice's and the arc's offsets carried to the plane
+            g = 1.0 - s
+            wu = g * (np.abs(hu - Du * (hn / Dn)) + np.abs(tu - Du * (tn / Dn)))
+            wv = g * (np.abs(hv - Dv * (hn / Dn)) + np.abs(tv - Dv * (tn / Dn)))
             cov = overlap(xu, wu, rect.half[0]) * overlap(xv, wv, rect.half[1])
             if rect.hole_half is not None:
                 cov = cov - overlap(xu, wu, rect.hole_half[0]) * overlap(xv, wv, rect.hole_half[1])
@@ -465,8 +467,6 @@ def _parallel_cylinder_shadow(points_mm, axis, radius_mm, body, rx) -> np.ndarra
     return np.where(np.isfinite(share), share, 1.0)
 
 
-#: lines around a tube's surface over which occlusion is averaged
-TUBE_RING = 6
 #: arc elements of a tube's surface whose footprints on a rectangle close to it are summed
 #: (:func:`footprint_fraction`)
 FOOTPRINT_RING = 24

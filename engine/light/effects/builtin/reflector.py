@@ -71,8 +71,8 @@ __all__ = ["ReflectorEffect", "mirror_rect", "mirror_facets", "MIRROR_RING"]
 
 #: lines around a tube's image for the share of it a mirror's edge lets through: the image of a
 #: tube 40 mm in front of a 120 mm mirror is cut by the edge for receivers across a whole row of
-#: the floor (validation scene mirror-behind); the six lines of apertures and slots
-#: (``physics.TUBE_RING``) put that row 6 % under Mitsuba 3, 24 lines within 0.5 %
+#: the floor (validation scene mirror-behind): six lines, each in or out, put that row 6 % under
+#: Mitsuba 3, 24 lines within 0.5 % (now 24 arc elements' footprints)
 MIRROR_RING = 24
 
 
@@ -244,15 +244,9 @@ def _mirrored(body, rect):
 def _fraction_through_facet(ctx, es, rx, rect) -> np.ndarray:
     """(M, N) share of each slice's light toward each receiver that passes through a mirror's
     rectangle ``rect`` (a plane mirror or a prism's facet): for an image, the light the mirror
-    reflects; for the lamp itself, the light its back stops
-    (:func:`~lbscene.engine.light.effects.physics.footprint_fraction` with :data:`MIRROR_RING`
-    arc elements; a 90 mm strip 40 mm behind a tube, hypothesis scene ``mirror-sides``, stepped
-    the A3 sheet by 4 % from column to column with 24 lines each in or out)."""
-    from lbscene.engine.light.effects.physics import footprint_fraction
-
-    if es.line_axis is None or es.line_radius_mm <= 0:
-        return ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
-    half = np.zeros(3) if es.half_step is None else np.asarray(es.half_step, float)
-    key = (es.points_mm, half, np.asarray(rx, float), rect.centre, rect.normal, rect.u, rect.half,
-           np.asarray([es.line_radius_mm, MIRROR_RING]))
-    return ctx.memo("hit:facet", key, lambda: footprint_fraction(es, rx, rect, MIRROR_RING))
+    reflects; for the lamp itself, the light its back stops (the footprints of
+    :data:`MIRROR_RING` arc elements at every distance,
+    :meth:`~lbscene.engine.light.effects.physics.ForwardContext.fraction_hitting`; a 90 mm strip
+    40 mm behind a tube, hypothesis scene ``mirror-sides``, stepped the A3 sheet by 4 % from
+    column to column with 24 lines each in or out)."""
+    return ctx.fraction_hitting(es, rx, rect, ring=MIRROR_RING)
