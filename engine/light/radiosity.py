@@ -105,9 +105,6 @@ REFINE_RATIO = 1.5
 TRANSPORT_PARAM_STEP = 0.02
 #: ... and the absolute step near zero
 TRANSPORT_PARAM_FLOOR = 1e-3
-#: fitted numbers whose patch light is interpolated between their two neighbours on that grid
-#: (the others, past this many, are rounded to the nearest)
-TRANSPORT_INTERP_DIMS = 3
 #: box patches are split while their diagonal exceeds this times their distance to a mirror, down
 #: to REFINE_MIN_MM: the mirror's shadow on the wall behind it and the view it hides from the
 #: surfaces around it.  Two tubes with a 90 mm mirror strip 40 mm behind each, 120 mm from 45 %
@@ -226,20 +223,6 @@ def _round_number(v: float) -> float:
         return round(v / TRANSPORT_PARAM_FLOOR) * TRANSPORT_PARAM_FLOOR
     step = math.log1p(TRANSPORT_PARAM_STEP)
     return math.copysign(math.exp(round(math.log(abs(v)) / step) * step), v)
-
-
-def _bracket_number(v: float) -> tuple[float, float, float]:
-    """``(lo, hi, w)``: the two neighbours of ``v`` on the grid of :func:`_round_number` and
-    ``v``'s position between them (0 at ``lo``, 1 at ``hi``; in the logarithm on the relative
-    grid)."""
-    if abs(v) < TRANSPORT_PARAM_FLOOR / TRANSPORT_PARAM_STEP:
-        t = v / TRANSPORT_PARAM_FLOOR
-        f = math.floor(t)
-        return f * TRANSPORT_PARAM_FLOOR, (f + 1) * TRANSPORT_PARAM_FLOOR, t - f
-    step = math.log1p(TRANSPORT_PARAM_STEP)
-    t = math.log(abs(v)) / step
-    f = math.floor(t)
-    return math.copysign(math.exp(f * step), v), math.copysign(math.exp((f + 1) * step), v), t - f
 
 
 def _rounded(params, declared=None) -> dict:
@@ -760,8 +743,7 @@ class RadiosityTransport:
         return self._cross_pp
 
     # ------------------------------------------------------------------ solve
-    def _first_order_at_patches(self, tm):
-        """``(terms, E0 (P, K))``: the lamp light of the model ``tm`` on the patches."""
+    def _first_order_at_patches(self):
         patches = self.patches
         ir = self.ctx.ir
         c = patches.centres
@@ -792,70 +774,13 @@ class RadiosityTransport:
         w = np.concatenate(w_l)
         nrm = np.concatenate(nrm_l)
         # nudge off the surface so paths leaving a patch never count it as an occluder
-        terms = tm.first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
+        terms = self._transport_model().first_order_terms(pts + NUDGE_MM * nrm, nrm, False,
                                                           pair_factor=self._plate_directional(
                                                               self._lamp_visibility()))
         E0 = np.zeros((len(patches), len(terms)))
         for k, t in enumerate(terms):
             E0[:, k] = np.bincount(idx, weights=w * t.geo, minlength=len(patches))
         return terms, E0
-
-    def _transport_corners(self) -> list[tuple[float, object]]:
-        """``[(weight, model)]`` whose weighted sum is the patches' lamp light: the fitted numbers
-        that shape lamp light interpolated (multilinearly, at most :data:`TRANSPORT_INTERP_DIMS`
-        of them) between their neighbours on the grid of :meth:`_transport_model`, the others
-        rounded to it.
-
-        Rounded to the nearest, the patches' light stepped when a number crossed half a step (an
-        opal plate's diffuse fraction, validation scene ``opal-grey``: 0.1 % of the light below
-        it, 0.5 to 1 in the χ² of 55 readings at 1 % noise, enough to stall a fit or tip a
-        verdict).  Interpolated, the light is continuous and the corners are shared by every
-        evaluation within one step of the grid (the fit's finite differences)."""
-        m = self.model
-        dims, eff, lo = [], {}, {}
-        for eid, p in m.effects.items():
-            declared = dict(m.ir.effects.get(eid) or {})
-            eff[eid] = dict(p or {}) if changes_lamp_light(eid) else p
-            if not changes_lamp_light(eid):
-                continue
-            for k, v in dict(p or {}).items():
-                if isinstance(v, float) and v != declared.get(k):
-                    dims.append((eff[eid], k, *_bracket_number(v)))
-        for lid, o in m.ctx.lamp_overrides.items():
-            lo[lid] = dict(o or {})
-            for k, v in dict(o or {}).items():
-                if isinstance(v, float):
-                    dims.append((lo[lid], k, *_bracket_number(v)))
-        live = [d for d in dims if 1e-9 < d[4] < 1.0 - 1e-9][:TRANSPORT_INTERP_DIMS]
-        if not live:
-            return [(1.0, self._transport_model())]
-        for d in dims:
-            if not any(d is x for x in live):
-                d[0][d[1]] = d[2] if d[4] < 0.5 else d[3]
-        opts = replace(m.options, lamp_points=TRANSPORT_LAMP_POINTS)
-        from pydantic import ValidationError
-
-        from lbscene.engine.files.diagnostics import LbsceneUserError
-        from .forward import ForwardModel
-
-        out = []
-        for corner in range(1 << len(live)):
-            w = 1.0
-            for j, (target, k, a, b, t) in enumerate(live):
-                up = bool(corner >> j & 1)
-                target[k] = b if up else a
-                w *= t if up else 1.0 - t
-            try:
-                fm = ForwardModel(m.ir, m.lighting, effects={e: (dict(p) if isinstance(p, dict) else p)
-                                                             for e, p in eff.items()},
-                                  lamp_overrides={i: dict(o) for i, o in lo.items()}, options=opts,
-                                  cache=m.ctx.cache)
-            except (ValidationError, LbsceneUserError):   # a neighbour past a bound: exact, then
-                return [(1.0, ForwardModel(m.ir, m.lighting, effects=m.effects,
-                                           lamp_overrides=m.ctx.lamp_overrides, options=opts,
-                                           cache=m.ctx.cache))]
-            out.append((w, fm))
-        return out
 
     def _transport_model(self):
         """The model whose lamp light lights the patches: this one with every fitted number that
@@ -1135,26 +1060,16 @@ class RadiosityTransport:
         repeats a point, reuses it (keyed by the parameters of every effect that changes
         lamp light, the lamp overrides and the lighting)."""
         if self._terms is None:
+            tm = self._transport_model()
+            k = (self._patch_key, self._body_sig, *tm.ctx.lamp_light_key())
             store = self.ctx.cache.setdefault("_rad_first", {})
-            parts = []
-            for w, tm in self._transport_corners():
-                k = (self._patch_key, self._body_sig, *tm.ctx.lamp_light_key())
-                hit = store.get(k)
-                if hit is None:
-                    hit = self._first_order_at_patches(tm)
-                    if len(store) >= 32:
-                        store.pop(next(iter(store)))
-                    store[k] = hit
-                if w > 0:
-                    parts.append((w, hit))
-            if len(parts) == 1 and parts[0][0] == 1.0:
-                self._terms, self._E0 = parts[0][1]
-            else:
-                # the corners' terms side by side, each column weighted: the solve is linear in
-                # them (each keeps its own spectrum: tagged, they are not merged)
-                self._terms = [replace(t, key=t.key + (f"corner:{j}",))
-                               for j, (_, (ts, _)) in enumerate(parts) for t in ts]
-                self._E0 = np.concatenate([w * E0 for w, (_, E0) in parts], axis=1)
+            hit = store.get(k)
+            if hit is None:
+                hit = self._first_order_at_patches()
+                if len(store) >= 16:
+                    store.pop(next(iter(store)))
+                store[k] = hit
+            self._terms, self._E0 = hit
         return self._terms, self._E0
 
     def _band_classes(self):
@@ -1231,19 +1146,11 @@ class RadiosityTransport:
         model's code.  All of it reproducible from the booth file on any machine."""
         from .code_digest import light_code_digest
 
-        corners = self._transport_corners()
-        if len(corners) == 1:
-            tm = corners[0][1]
-            return ("patch_radiosity-1", self.ctx.ir.content_hash, tm.lighting,
-                    json.dumps(tm.effects, sort_keys=True, default=str),
-                    json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str),
-                    repr(tm.options), light_code_digest(self.ctx.ir))
-        # interpolated: the exact numbers decide the weights
-        m = self.model
-        return ("patch_radiosity-1", self.ctx.ir.content_hash, m.lighting, "interpolated",
-                json.dumps(m.effects, sort_keys=True, default=str),
-                json.dumps(m.ctx.lamp_overrides, sort_keys=True, default=str),
-                repr(corners[0][1].options), light_code_digest(self.ctx.ir))
+        tm = self._transport_model()
+        return ("patch_radiosity-1", self.ctx.ir.content_hash, tm.lighting,
+                json.dumps(tm.effects, sort_keys=True, default=str),
+                json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str),
+                repr(tm.options), light_code_digest(self.ctx.ir))
 
     def _solve(self, compute: bool = True) -> bool:
         """Patch radiosity B (bands, patches, terms): for :meth:`patch_radiosity`.

@@ -125,3 +125,20 @@ def test_the_committed_plate_measurements_are_current():
         new = MP.measure(name, spp=MP.SPP, passes=4)
         se = np.hypot(m["T_se"], new["T_se"])
         assert np.all(np.abs(new["T"] - m["T"]) <= 4 * se + 1e-4), name
+
+
+def test_an_opal_layer_thinning_to_nothing_keeps_its_entry_law():
+    """τ → 0 (a regular part as large as the clear slab's, as a hypothesised plate's fitted
+    diffuse fraction can ask for): the entry law tends to the thin layer's, which scatters along
+    its path (1/cos θ_t); taking it as 1 at τ = 0 stepped the direct light by 0.75 %."""
+    c = np.linspace(0.02, 1.0, 40)
+    thin = [plates.opal_entry_relative(c, 1.49, tau) for tau in (1e-3, 1e-6, 1e-9)]
+    zero = plates.opal_entry_relative(c, 1.49, 0.0)
+    np.testing.assert_allclose(thin[1], zero, rtol=1e-5)
+    np.testing.assert_allclose(thin[2], zero, rtol=1e-8)
+    # grazing light travels farther in the layer: more of it scatters than at normal incidence
+    # once past the interface's loss (n 1.49: cos θ_t ≥ 0.74 inside)
+    assert zero[-1] == pytest.approx(1.0) and zero[20] > 1.0
+    # the optical depth of a plate whose regular part reaches the clear slab's is 0
+    r0 = ((1.49 - 1) / (1.49 + 1)) ** 2
+    assert plates.opal_optical_depth((1 - r0) ** 2 / (1 - r0 ** 2), 1.49) == pytest.approx(0.0, abs=1e-12)
