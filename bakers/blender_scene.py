@@ -634,10 +634,12 @@ class BlenderScene:
         return nb.math("DIVIDE", s, s0)
 
     def _opal_exit_shape(self, nb: _Nodes, ior: float):
-        """(1 − F(θ))/(1 − F_h): an opal plate's scattered radiance leaving through its smooth
-        face at the viewing angle θ, relative to a Lambertian emitter of the same exitance
-        (``lbscene.engine.light.plates.opal_exit_shape``); F the face's unpolarised Fresnel
-        reflectance, F_h its hemispherical mean."""
+        """(1 − F(θ))/(1 − F_h): a thin translucent sheet's scattered radiance leaving through its
+        smooth face at the viewing angle θ, relative to a Lambertian emitter of the same exitance
+        (the face's loss only: the scattering layer's own shape,
+        ``lbscene.engine.light.opal_layer.OpalLayer.exit_shape``, is in the bake only where the
+        plate is drawn as its slab); F the face's unpolarised Fresnel reflectance, F_h its
+        hemispherical mean."""
         geo = nb.new("ShaderNodeNewGeometry")
         dot = nb.new("ShaderNodeVectorMath", operation="DOT_PRODUCT")
         nb.link(geo.outputs["Incoming"], dot.inputs[0])

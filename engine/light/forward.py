@@ -47,6 +47,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from lbscene.engine.files.parallel import blas_single_thread
 from lbscene.engine.files.disk_cache import array_key
 from lbscene.engine.light.effects.physics import (DirectionalSource, EmitterSet, ForwardContext,
                                                   LambertianSource, PointLight, effect_params)
@@ -163,24 +164,6 @@ def _receiver_error(message: str):
     from lbscene.engine.files.diagnostics import LbsceneUserError
 
     return LbsceneUserError.single("LB104", message, expected="points (M, 3) in mm and unit normals (M, 3)")
-
-
-_BLAS = None
-
-
-def blas_single_thread():
-    """Context limiting BLAS to one thread: the model's matrices are small, and threaded BLAS
-    on a loaded 2-core machine spin-waits (a 255² LU took 80 ms threaded, 1 ms single)."""
-    import contextlib
-
-    global _BLAS
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:  # optional: without it BLAS keeps its default threads
-        return contextlib.nullcontext()
-    if _BLAS is None:
-        _BLAS = ThreadpoolController()
-    return _BLAS.limit(limits=1)
 
 
 _TABLES: dict = {}

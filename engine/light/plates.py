@@ -31,30 +31,22 @@ Fresnel reflectance :math:`F` and the layer's optical depth :math:`τ` it is
 .. math:: T_\\text{reg}(θ_i) = \\frac{(1 - F)^2 e^{-τ/\\cos θ_t}}{1 - F^2 e^{-2τ/\\cos θ_t}},
 
 which gives :math:`τ` from the declaration (:func:`opal_optical_depth`) and the regular part's
-angular law (:func:`opal_regular_relative`).  The light that enters (:math:`1 - F(θ_i)`) and is
-not transmitted unscattered, :math:`1 - e^{-τ/\\cos θ_t}` of it, scatters, first at a depth
-proportional to :math:`\\cos θ_t`; in the diffusion picture of the layer the part that leaves
-through the far face grows linearly with that depth plus the extrapolation length
-:math:`z_b = \\tfrac{2}{3} A\\,ℓ` of a boundary whose inside reflects diffuse light with
-:math:`R_\\text{eff}(n)` (:math:`A = (1 + R_\\text{eff})/(1 - R_\\text{eff})`, :math:`ℓ` the transport
-length).  The scattered total transmittance at incidence :math:`θ_i`, relative to normal
-incidence, is then
-
-.. math:: t(θ_i) = \\frac{1 - F(θ_i)}{1 - F_0}\\,
-          \\frac{1 - e^{-τ/\\cos θ_t}}{1 - e^{-τ}}\\,\\bigl(a + (1 - a)\\cos θ_t\\bigr),
-   \\qquad a = \\frac{z_b}{z_b + ℓ} = \\frac{2A}{2A + 3}
-
-(:func:`opal_layer_constant`: 0.40 for faces matched to the air, 0.70 for PMMA; no constant is
-fitted).  By reciprocity the scattered light leaves with the same law,
-
-.. math:: L(θ_o) = \\frac{M}{π}\\,\\frac{t(θ_o)}{t_h}, \\qquad t_h = 2\\int_0^1 t(μ)\\,μ\\,dμ,
-
-and what does not leave through the far face (nor is absorbed, in the same proportion) comes
-back: :math:`R(θ_i) = 1 - T(θ_i) - A_0\\,t(θ_i)`, with :math:`A_0 = 1 - T_\\text{decl} -
-R_\\text{decl}` and the declared normal reflectance :math:`R_\\text{decl}` (default
-:math:`1 - T_\\text{decl}`: a plate that does not absorb).  Measured in Mitsuba 3 (a
-non-absorbing Henyey–Greenstein medium between smooth or index-matched faces,
-``tests/data/validation/plate-optics/``) four plates follow these laws within 4 % to 70°.
+angular law (:func:`opal_regular_relative`).  The layer is a Henyey–Greenstein medium whose
+asymmetry makes the non-absorbing plate transmit :math:`T_\\text{decl}` in total
+(:func:`opal_plate_layer`; the medium Mitsuba 3 and the bake draw): its scattered light, every
+incoming and outgoing direction, is the plane-parallel solution of
+:mod:`lbscene.engine.light.opal_layer` (adding–doubling; no constant fitted).  The forward
+model's direct light through the plate uses it whole (bidirectional, every azimuth); the
+inter-reflection takes its directional-hemispherical parts: the scattered transmittance at
+incidence :math:`θ_i` relative to normal incidence :math:`t(θ_i) = T_s(θ_i)/T_s(0)`
+(:meth:`~lbscene.engine.light.opal_layer.OpalLayer.entry_relative`), by reciprocity the shape of
+the radiance it sends on under diffuse light, :math:`L(θ_o) = \\frac{M}{π}\\,t(θ_o)/t_h`,
+:math:`t_h = 2\\int_0^1 t(μ)\\,μ\\,dμ`, and what does not leave through the far face (nor is
+absorbed, in the same proportion) comes back: :math:`R(θ_i) = 1 - T(θ_i) - A_0\\,t(θ_i)`, with
+:math:`A_0 = 1 - T_\\text{decl} - R_\\text{decl}` and the declared normal reflectance
+:math:`R_\\text{decl}` (default :math:`1 - T_\\text{decl}`: a plate that does not absorb).
+Measured in Mitsuba 3 (a non-absorbing Henyey–Greenstein medium between smooth or index-matched
+faces, ``tests/data/validation/plate-optics/``) five plates follow these laws within 1 % to 70°.
 
 Examples
 --------
@@ -67,7 +59,6 @@ True
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
 
@@ -78,8 +69,6 @@ __all__ = [
     "reference_transmittance",
     "absorption_squared",
     "interface_fresnel",
-    "opal_entry_relative",
-    "opal_exit_shape",
     "plate_reflectance",
     "plate_hemispherical_reflectance",
     "opal_declared_reflectance",
@@ -93,10 +82,12 @@ __all__ = [
     "slab_relative",
     "fresnel_relative",
     "FresnelWeight",
-    "OpalEntryWeight",
-    "opal_layer_constant",
     "opal_optical_depth",
     "opal_depth",
+    "opal_plate_layer",
+    "plate_scatters_diffusely",
+    "plate_line_relative",
+    "plate_diffuse_transfer",
     "opal_regular_relative",
     "plate_lobe_footprint_mm",
     "plate_diffuse_light_factor",
@@ -221,8 +212,9 @@ def plate_diffuse_light_factor(ir) -> float:
             return _hemispherical(lambda mu: fresnel_relative(mu, d.ior))
         fd = float(d.scattering["diffuse_fraction"])
         tau = opal_depth(ir, fd)
+        layer = opal_plate_layer(ir, fd)
         return (1.0 - fd) * _hemispherical(lambda mu: opal_regular_relative(mu, d.ior, tau)) + \
-            fd * _hemispherical(lambda mu: opal_entry_relative(mu, d.ior, tau))
+            fd * _hemispherical(layer.entry_relative)
     return float(plate_slab(ir).hemispherical_transmittance()) / reference_transmittance(ir)
 
 
@@ -238,7 +230,38 @@ def plate_directional_relative(ir, cos_i) -> np.ndarray:
         return slab_relative(ir, cos_i)
     fd = float(d.scattering["diffuse_fraction"])
     tau = opal_depth(ir, fd)
-    return (1.0 - fd) * opal_regular_relative(cos_i, d.ior, tau) + fd * opal_entry_relative(cos_i, d.ior, tau)
+    return (1.0 - fd) * opal_regular_relative(cos_i, d.ior, tau) + fd * opal_plate_layer(ir, fd).entry_relative(cos_i)
+
+
+def plate_scatters_diffusely(ir) -> bool:
+    """Does the plate scatter part of its light through its layer (an opal plate with a diffuse
+    fraction), so that the inter-reflection carries that part from face to face rather than
+    along straight lines?"""
+    d = ir.diffuser
+    return (d is not None and d.scattering.get("type") == "lambertian"
+            and float(d.scattering.get("diffuse_fraction", 0.0)) > 0.0)
+
+
+def plate_line_relative(ir, cos_i) -> np.ndarray:
+    """The part of :func:`plate_directional_relative` that crosses the plate along a straight
+    line: all of it for a clear or rough plate, the regular part
+    :math:`(1 - f_d) T_\\text{reg}(θ)/T_\\text{reg}(0)` for an opal plate (its scattered part
+    leaves the far face from where it arrived: :func:`plate_diffuse_transfer`)."""
+    if not plate_scatters_diffusely(ir):
+        return plate_directional_relative(ir, cos_i)
+    d = ir.diffuser
+    fd = float(d.scattering["diffuse_fraction"])
+    return (1.0 - fd) * opal_regular_relative(cos_i, d.ior, opal_depth(ir, fd))
+
+
+def plate_diffuse_transfer(ir) -> float:
+    """The part of diffuse (Lambertian) light arriving on one face of an opal plate that leaves
+    the other face scattered, relative to the declared total normal transmittance:
+    :math:`f_d\\,t_h`, :math:`t_h = 2\\int_0^1 t(μ)\\,μ\\,dμ` (0 for other plates)."""
+    if not plate_scatters_diffusely(ir):
+        return 0.0
+    fd = float(ir.diffuser.scattering["diffuse_fraction"])
+    return fd * _hemispherical(opal_plate_layer(ir, fd).entry_relative)
 
 
 def _hemispherical(f) -> float:
@@ -251,8 +274,8 @@ def _hemispherical(f) -> float:
 def reference_transmittance(ir) -> float:
     """:math:`T_\\text{ref}`: the plate model's own total transmittance at normal incidence
     without absorption — the rough slab's :math:`T(0°)` for a ``roughness`` plate, 1 for the
-    others (their laws, :func:`fresnel_relative`, :func:`opal_regular_relative` and
-    :func:`opal_entry_relative`, are already
+    others (their laws, :func:`fresnel_relative`, :func:`opal_regular_relative` and the opal
+    layer's :math:`t(θ)`, are already
     relative to normal incidence).  The declared transmittance over it is the absorption
     :math:`a^2` (:func:`absorption_squared`)."""
     if is_rough(ir):
@@ -275,40 +298,6 @@ def interface_fresnel(cos_i, ior: float) -> np.ndarray:
         rs = ((c - ior * ct) / (c + ior * ct)) ** 2
         rp = ((ior * c - ct) / (ior * c + ct)) ** 2
     return np.where(c > 0, 0.5 * (rs + rp), 1.0)
-
-
-def opal_layer_constant(ior: float) -> float:
-    """An opal layer's constant :math:`a = 2A/(2A + 3)` (module docstring): the part of its
-    scattered transmittance that does not depend on the depth the light first scatters at, from
-    the extrapolation length of a boundary of index ``ior``, :math:`A = (1 + R_\\text{eff})/(1 -
-    R_\\text{eff})`, :math:`R_\\text{eff} = (R_φ + R_j)/(2 - R_φ + R_j)` with the moments
-    :math:`R_φ = 2\\int_0^1 F_i(μ)\\,μ\\,dμ`, :math:`R_j = 3\\int_0^1 F_i(μ)\\,μ^2\\,dμ` of the
-    face's Fresnel reflectance :math:`F_i` seen from inside (total beyond the critical angle).
-
-    >>> round(opal_layer_constant(1.0), 3), round(opal_layer_constant(1.49), 3)
-    (0.4, 0.703)
-    """
-    return _opal_layer_constant(float(ior))
-
-
-@lru_cache(maxsize=64)
-def _opal_layer_constant(n: float) -> float:
-    """:func:`opal_layer_constant`, once per index (a fit evaluates the plate's laws at every step)."""
-    x, w = gauss_legendre(256)
-    mu = 0.5 * (x + 1.0)
-    w = 0.5 * w
-    # inside the layer: the ray leaves at sin θ_o = n sin θ_i; beyond the critical angle all of it comes back
-    s_o = np.sqrt(1.0 - mu * mu) * n
-    Fi = np.ones_like(mu)
-    ok = s_o < 1.0
-    co = np.sqrt(1.0 - s_o[ok] ** 2)
-    ci = mu[ok]
-    Fi[ok] = 0.5 * (((n * ci - co) / (n * ci + co)) ** 2 + ((n * co - ci) / (n * co + ci)) ** 2)
-    r_phi = float(np.sum(w * 2.0 * mu * Fi))
-    r_j = float(np.sum(w * 3.0 * mu * mu * Fi))
-    r_eff = (r_phi + r_j) / (2.0 - r_phi + r_j)
-    A = (1.0 + r_eff) / (1.0 - r_eff)
-    return 2.0 * A / (2.0 * A + 3.0)
 
 
 def opal_optical_depth(regular: float, ior: float) -> float:
@@ -344,6 +333,34 @@ def opal_depth(ir, fd: float | None = None) -> float:
     return opal_optical_depth((1.0 - float(fd)) * T_mean, d.ior)
 
 
+#: an opal layer's optical depth at most (a plate declared with no regular part: :math:`e^{-τ}`
+#: below 1e-5 of any transmittance; the asymmetry then makes up its total)
+OPAL_MAX_DEPTH = 12.0
+#: and at least (a fitted diffuse fraction near 0: the thin layer's law, which scatters along
+#: the path, :math:`∝ 1/\cos θ_t`, is its limit)
+OPAL_MIN_DEPTH = 1e-6
+
+
+def opal_plate_layer(ir, fd: float | None = None):
+    """The scattering layer of the booth's plate's diffuse part
+    (:class:`~lbscene.engine.light.opal_layer.OpalLayer`): optical depth :func:`opal_depth`
+    (``fd``: default the declared diffuse fraction; at most :data:`OPAL_MAX_DEPTH`) and the
+    Henyey–Greenstein asymmetry for which the non-absorbing layer transmits the declared total
+    (its mean over 380–780 nm) at normal incidence
+    (:func:`~lbscene.engine.light.opal_layer.opal_layer_at`: between layers solved on a grid of
+    depths, continuous in the depth).  A total no asymmetry in :math:`[0, G_\\text{max}]` reaches
+    (a plate that absorbs, or a very thin one) takes the nearer end: the layer's shape of light
+    then, its level the declaration's (the callers scale the scattered light to
+    :math:`f_d T_\\text{decl}` at normal incidence)."""
+    from .opal_layer import opal_layer_at
+
+    d = ir.diffuser
+    T = np.asarray(d.transmittance.array_1nm, float)
+    T_mean = float(np.mean(T[20:421])) if T.size == 471 else float(np.mean(T))
+    tau = min(max(opal_depth(ir, fd), OPAL_MIN_DEPTH), OPAL_MAX_DEPTH)
+    return opal_layer_at(tau, min(max(T_mean, 1e-6), 1.0), float(d.ior))
+
+
 def _cos_t(c, ior):
     return np.sqrt(np.clip(1.0 - (1.0 - c * c) / (ior * ior), 0.0, 1.0))
 
@@ -366,35 +383,6 @@ def opal_regular_relative(cos_i, ior: float, tau: float) -> np.ndarray:
     return reg(c) / reg(np.ones(1))[0]
 
 
-def opal_entry_relative(cos_i, ior: float, tau: float = float("inf")) -> np.ndarray:
-    """An opal plate's scattered transmittance at incidence ``cos_i`` relative to normal
-    incidence, :math:`t(θ_i) = (1 - F(θ_i))/(1 - F_0)\\,(1 - e^{-τ/\\cos θ_t})/(1 - e^{-τ})\\,
-    (a + (1 - a)\\cos θ_t)` (module docstring) for a layer of optical depth ``tau`` (default
-    infinite: every ray that enters scatters)."""
-    c = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
-    cos_t = _cos_t(c, ior)
-    a = opal_layer_constant(ior)
-    t = (1.0 - interface_fresnel(c, ior)) / (1.0 - interface_fresnel(np.ones(1), ior)[0]) * \
-        (a + (1.0 - a) * cos_t)
-    if np.isfinite(tau) and tau > 0.0:
-        with np.errstate(divide="ignore", over="ignore"):
-            t = t * -np.expm1(-tau / np.maximum(cos_t, 1e-12)) / -np.expm1(-tau)
-    elif np.isfinite(tau):
-        # an optically thin layer (τ → 0: a regular part as large as the clear slab's) scatters
-        # in proportion to its path, 1/cos θ_t: the limit of the line above (taking it as 1 put a
-        # step of 0.75 % in the direct light where a fitted diffuse fraction crossed it)
-        t = t / np.maximum(cos_t, 1e-12)
-    return t
-
-
-def opal_exit_shape(cos_o, ior: float, tau: float = float("inf")) -> np.ndarray:
-    """An opal plate's scattered radiance at exit angle ``cos_o`` relative to a Lambertian
-    emitter of the same exitance, :math:`t(θ_o)/t_h` (reciprocity with
-    :func:`opal_entry_relative`, layer of optical depth ``tau``)."""
-    th = _hemispherical(lambda mu: opal_entry_relative(mu, ior, tau))
-    return opal_entry_relative(cos_o, ior, tau) / th
-
-
 def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
     """Directional-hemispherical reflectance of the plate (either face) at incidence ``cos_i``
     (shape ``S``) for a declared total normal transmittance ``transmittance`` (shape ``B``);
@@ -402,7 +390,8 @@ def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
 
     * ``roughness``: the rough slab's :math:`R_\\text{top}(μ) + a^2 R_\\text{int}(μ)`;
     * ``lambertian`` (opal): :math:`1 - T(μ) - A_0\\,t(μ)`, :math:`T(μ)` its total
-      transmittance (regular part as a clear plate, scattered part :math:`t(μ)`) and
+      transmittance (regular part :func:`opal_regular_relative`, scattered part the layer's
+      :math:`t(μ)`, :func:`opal_plate_layer`) and
       :math:`A_0 = 1 - T_\\text{decl} - R_\\text{decl}` what it absorbs at normal incidence, with
       the declared ``reflectance`` (default :math:`1 - T_\\text{decl}`: no absorption);
     * a clear plate: :math:`1 - T_\\text{slab}(μ)` (its absorption neglected).
@@ -419,7 +408,7 @@ def plate_reflectance(ir, cos_i, transmittance) -> np.ndarray:
         return clear
     fd = float(d.scattering["diffuse_fraction"])
     tau = opal_depth(ir, fd)
-    t = opal_entry_relative(mu, d.ior, tau)
+    t = opal_plate_layer(ir, fd).entry_relative(mu)
     T_theta = T * ((1.0 - fd) * opal_regular_relative(mu, d.ior, tau) + fd * t)
     A0 = np.clip(1.0 - T - opal_declared_reflectance(ir, T), 0.0, 1.0)      # absorbed at 0°
     return np.clip(1.0 - T_theta - A0 * t, 0.0, 1.0)
@@ -441,19 +430,6 @@ def plate_hemispherical_reflectance(ir, transmittance) -> np.ndarray:
     mu = 0.5 * (x + 1.0)
     R = plate_reflectance(ir, mu, transmittance)              # (64, B)
     return np.einsum("k,kb->b", w * mu, R.reshape(len(mu), -1)).reshape(np.shape(transmittance))
-
-
-class OpalEntryWeight:
-    """Incidence weight of light entering an opal plate's scattering layer,
-    :func:`opal_entry_relative` (optical depth ``tau``); ``cache_key`` as :class:`FresnelWeight`'s."""
-
-    def __init__(self, ior: float, tau: float = float("inf")):
-        self.ior = float(ior)
-        self.tau = float(tau)
-        self.cache_key = ("opal_entry", self.ior, self.tau)
-
-    def __call__(self, cos_i):
-        return opal_entry_relative(cos_i, self.ior, self.tau)
 
 
 # --------------------------------------------------------------------------- occluders

@@ -1092,10 +1092,17 @@ class RadiosityTransport:
 
     def _neumann_terms(self, u) -> int | None:
         """Jacobi sweeps for a 1e-9 relative residual when the series converges fast, else None."""
-        r, _, Rm = self._class_parts(u)
+        r, T, Rm = self._class_parts(u)
         F_sum = self.F.sum(axis=1) + (self.images[0].sum(axis=1) if self._mirror else 0.0)
         for R, Fm in zip(Rm, self.mirror_images):
             F_sum = F_sum + R * Fm.sum(axis=1)
+        pairs = self.plate_pairs
+        if pairs is not None and T is not None:           # an opal plate's faces pass light on
+            k = self._coupling_ratio(T)
+            S = F_sum.copy()
+            F_sum = S.copy()
+            F_sum[pairs[:, 0]] += k * S[pairs[:, 1]]
+            F_sum[pairs[:, 1]] += k * S[pairs[:, 0]]
         q = float(np.max(r * F_sum))                       # bound on the spectral radius of ρF
         if self.p.max_bounces > 0:
             return self.p.max_bounces - 1
@@ -1204,12 +1211,14 @@ class RadiosityTransport:
         """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
         else minus the plate's directional transmittance at the line's incidence relative to
         normal incidence (negative marks a crossing: :meth:`_F_band` multiplies those by the
-        declared total transmittance)."""
-        from .plates import plate_directional_relative
+        declared total transmittance); an opal plate's regular part only
+        (:func:`~lbscene.engine.light.plates.plate_line_relative`: its scattered part goes from
+        face to face, :meth:`_plate_coupling`)."""
+        from .plates import plate_line_relative
 
         d = A[:, None, :] - B[None, :, :]
         cos = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-        return np.where(cross, -plate_directional_relative(self.ctx.ir, cos), 1.0)
+        return np.where(cross, -plate_line_relative(self.ctx.ir, cos), 1.0)
 
     def _crossed(self, M, S, T):
         """``M`` with the entries whose lines cross the plate (``S`` < 0) times ``T·|S|``."""
@@ -1220,12 +1229,92 @@ class RadiosityTransport:
         images at :math:`R(θ)` for a specular plate) and with the mirrors' images at their
         reflectances ``Rm`` (one per group)."""
         F = self.F if T is None or self.cross_pp is None else self._crossed(self.F, self.cross_pp, T)
+        if T is not None and self.plate_pairs is not None:
+            F = self._plate_coupling(F, T) + self._exit_shape_correction(F, self.patches.centres, T)
         if self._mirror and T is not None:
             F = F + self._reflected(*self.images, T)
         for R, Fm in zip(Rm, self.mirror_images):
             if R > 0:
                 F = F + R * Fm
         return F
+
+    @property
+    def plate_pairs(self) -> np.ndarray | None:
+        """(n, 2) indices of the plate's top and bottom face patches over the same part of it, or
+        None when the plate scatters nothing diffusely
+        (:func:`~lbscene.engine.light.plates.plate_scatters_diffusely`)."""
+        from .plates import plate_scatters_diffusely
+
+        if self._plate_faces is None or not plate_scatters_diffusely(self.ctx.ir):
+            return None
+        if getattr(self, "_pairs", None) is None:
+            idx = np.nonzero(self._plate_faces)[0]
+            c = np.round(self.patches.centres[idx, :2], 6)
+            up = self.patches.normals[idx, 2] > 0
+            top, bottom = idx[up], idx[~up]
+            order_t = np.lexsort((c[up, 1], c[up, 0]))
+            order_b = np.lexsort((c[~up, 1], c[~up, 0]))
+            self._pairs = np.c_[top[order_t], bottom[order_b]]
+        return self._pairs
+
+    def _coupling_ratio(self, T: float) -> float:
+        """:math:`τ_d / R_h`: the light an opal plate's face sends on scattered from the other face
+        (:func:`~lbscene.engine.light.plates.plate_diffuse_transfer` times the transmittance ``T``)
+        over what it reflects (the plate patches' reflectance at ``T``)."""
+        from .plates import plate_diffuse_transfer, plate_hemispherical_reflectance
+
+        ir = self.ctx.ir
+        Rh = float(plate_hemispherical_reflectance(ir, np.array([float(T)]))[0])
+        return plate_diffuse_transfer(ir) * float(T) / max(Rh, 1e-9)
+
+    def _plate_coupling(self, F, T):
+        """``F`` with an opal plate's scattered transmission: the row of each plate face gets
+        the other face's row times :meth:`_coupling_ratio`, so that :math:`\\mathrm{diag}(ρ) F`
+        carries, besides what the face reflects, :math:`τ_d` times the light arriving on the
+        other face (the layer scatters it out of this face, from where it arrived; its light
+        crossing along straight lines is the regular part only, :meth:`_plate_line_factor`).
+        The lamps' own light through the plate is not in it (the direct light's plate cells
+        carry that): the coupling acts on inter-reflected light only."""
+        pairs = self.plate_pairs
+        if pairs is None:
+            return F
+        k = self._coupling_ratio(T)
+        if k <= 0:
+            return F
+        F = F.copy()
+        top, bottom = pairs[:, 0], pairs[:, 1]
+        add_top, add_bottom = k * F[bottom], k * F[top]
+        F[top] += add_top
+        F[bottom] += add_bottom
+        return F
+
+    def _exit_shape_correction(self, M, points, T):
+        """What an opal plate's scattered transmission adds to a gather ``M`` (rows: viewers at
+        ``points``; columns: patches; the plate's lines already crossed) beyond the Lambertian
+        emission of the face patches: the layer sends the light it scatters through with the
+        shape :math:`s(θ_o) = t(θ_o)/t_h` (:meth:`~lbscene.engine.light.opal_layer.OpalLayer.exit_shape`:
+        more toward the normal), so a viewer of face :math:`b` gets
+        :math:`M_{ib}\\,(s(θ_{ib}) - 1)\\,τ_d\\,H_{b'}` more, :math:`H_{b'} = F_{b'} B` the light on
+        the other face.  ``(len(points), P)``; zero without such a plate."""
+        pairs = self.plate_pairs
+        if pairs is None:
+            return 0.0
+        from .plates import opal_plate_layer, plate_diffuse_transfer
+
+        ir = self.ctx.ir
+        tau = plate_diffuse_transfer(ir) * float(T)
+        if tau <= 0:
+            return 0.0
+        layer = opal_plate_layer(ir, float(ir.diffuser.scattering["diffuse_fraction"]))
+        c = self.patches.centres
+        F = self.F if self.cross_pp is None else self._crossed(self.F, self.cross_pp, T)
+        out = 0.0
+        for face, other, sign in ((pairs[:, 1], pairs[:, 0], -1.0), (pairs[:, 0], pairs[:, 1], 1.0)):
+            d = np.asarray(points, float)[:, None, :] - c[face][None, :, :]
+            cos = np.clip(sign * d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-12), 0.0, 1.0)
+            delta = M[:, face] * (layer.exit_shape(cos) - 1.0)
+            out = out + delta @ (tau * F[other])
+        return out
 
     def _class_parts(self, u) -> tuple[np.ndarray, float | None, np.ndarray]:
         """A band class's row split into ``(reflectances (P,), plate transmittance or None,
@@ -1335,13 +1424,15 @@ class RadiosityTransport:
             return self._solve()
         return self._solve(compute=False)
 
-    def _G_band(self, G, S_rx, img, T, mimg=(), Rm=()):
+    def _G_band(self, G, S_rx, img, T, mimg=(), Rm=(), P_rx=None):
         """The receivers' gather for one band class: ``G`` with the plate's line factors at
         transmittance ``T`` and, for a specular plate, the patches' images (``img``: ``(G', cos)``
         of :func:`lbscene.engine.light.plate_mirror.receiver_image_factors`) times :math:`R(θ)`,
         and the patches' images in the mirrors (``mimg``, one per group) times their reflectances
         ``Rm``."""
         Gj = G if S_rx is None or T is None else self._crossed(G, S_rx, T)
+        if T is not None and P_rx is not None:
+            Gj = Gj + self._exit_shape_correction(Gj, P_rx, T)
         if img is not None and T is not None:
             Gj = Gj + self._reflected(img[0], img[1], T)
         for R, Gm in zip(Rm, mimg):
@@ -1360,7 +1451,7 @@ class RadiosityTransport:
         for j, u in enumerate(uniq):
             bands = np.nonzero(inv == j)[0]
             _, T, Rm = self._class_parts(u)
-            Gj = self._G_band(G, S_rx, img, T, mimg, Rm)
+            Gj = self._G_band(G, S_rx, img, T, mimg, Rm, P_rx)
             out[:, :, bands] = np.einsum("mp,bpk->kmb", Gj, B[bands], optimize=True)
         return out
 
@@ -1386,7 +1477,7 @@ class RadiosityTransport:
         ops = []
         for j, u in enumerate(uniq):
             r, T, Rm = self._class_parts(u)
-            Gj = self._G_band(G, S_rx, img, T, mimg, Rm)
+            Gj = self._G_band(G, S_rx, img, T, mimg, Rm, P_rx)
             n_it = self._neumann_terms(u)
             if n_it is not None and (self.p.max_bounces > 0 or n_it * len(G) < Pn / 3):
                 A = r[:, None] * self._F_band(T, Rm)

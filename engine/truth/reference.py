@@ -22,8 +22,8 @@ It reads only the IR (spectra, geometry, effect parameters) and never calls
 the forward model's code; a ``roughness`` plate's directional transmittance
 comes from the rough slab tables (:mod:`lbscene.engine.light.rough_slab`, the
 model of the plate both share; its regular path only: a plate whose lobe
-is wide is not represented beyond that), and an opal plate's entry and exit laws from
-:mod:`lbscene.engine.light.plates` (the plate model both share).  It only supports box interiors (parametric
+is wide is not represented beyond that), and an opal plate's scattering layer from
+:mod:`lbscene.engine.light.opal_layer` (the plate model both share).  It only supports box interiors (parametric
 booths).  Other truth providers (e.g. a Cycles bake) register with
 :func:`register_truth_provider` and are looked up by name.
 
@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from lbscene.engine.light.plates import opal_depth, opal_entry_relative, opal_exit_shape, opal_regular_relative
+from lbscene.engine.light.plates import opal_depth, opal_regular_relative
 
 __all__ = ["ReferenceEngine", "TRUTH_PROVIDERS", "register_truth_provider", "get_truth_provider"]
 
@@ -496,12 +496,19 @@ class ReferenceEngine:
         return sc["diffuse_fraction"] if sc.get("type") == "lambertian" else 0.0
 
     def _plate_light(self, P, N, meter, chunk=32):
-        """Diffuse re-emission of the diffuser plate, Monte Carlo over the plate area."""
+        """Scattered light of the diffuser plate, Monte Carlo over the plate area: each sample
+        point of the top face gathers the lamps' light by direction, the bottom face under it
+        sends it on with the scattering layer's bidirectional law
+        (:func:`~lbscene.engine.light.plates.opal_plate_layer`, the plate model both share),
+        :math:`f_d T_\\text{decl}` of a beam along the normal."""
         diff = self.fx.get("diffuser")
         if diff is None or self.ir.diffuser is None or self._diffuse_fraction() <= 0:
             return []
+        from lbscene.engine.light.plates import opal_plate_layer
+
         d = self.ir.diffuser
         fd = self._diffuse_fraction()
+        layer = opal_plate_layer(self.ir, fd)
         key = "_plate"
         if getattr(self, key, None) is None:
             k = int(np.sqrt(self.plate_samples))
@@ -510,16 +517,14 @@ class ReferenceEngine:
             pts = np.c_[d.centre_mm[0] + su * d.size_mm[0], d.centre_mm[1] + sv * d.size_mm[1],
                         np.full(k * k, d.z_mm)]
             area = d.size_mm[0] * d.size_mm[1] * 1e-6 / (k * k)
-            t0 = _fresnel_plate(np.ones(1), d.ior)[0]
-            # irradiance on the top face (ideal cosine receiver, Fresnel-weighted per path)
-            top = self._top_fresnel(pts, t0)
-            setattr(self, key, (pts, area, top))
+            top = self._top_light(pts + [0.0, 0.0, d.thickness_mm / 2], layer)
+            setattr(self, key, (pts - [0.0, 0.0, d.thickness_mm / 2], area, top))
         pts, area, top = getattr(self, key)
         T = np.clip(d.transmittance.array_1nm * diff.transmittance_scale, 0, 1)
-        tau = opal_depth(self.ir, fd)
+        scale = fd / float(layer.scattered_total(np.ones(1))[0])
         out = []
-        for group, spec, e_top in top:
-            exitance = fd * e_top                                  # W/m² per unit spectrum
+        for group, spec, coef in top:
+            G = layer.exit_modes(coef)                             # (S, M+1, N)
             geo = np.zeros(len(P))
             for a in range(0, len(P), chunk):
                 p, n, m = P[a:a + chunk], N[a:a + chunk], meter[a:a + chunk]
@@ -528,42 +533,48 @@ class ReferenceEngine:
                 u = v / r[..., None]
                 cos_r = np.maximum((u * n[:, None, :]).sum(-1), 0)
                 cos_s = np.maximum(u[..., 2], 0)           # plate emits downward (-z)
-                # the opal exit law: Lambertian times t(θ_o)/t_h (lbscene.engine.light.plates)
-                val = exitance[None] / np.pi * cos_s * opal_exit_shape(cos_s, d.ior, tau) * cos_r / \
-                    (r * 1e-3) ** 2 * area
+                # toward the receiver: −u; its azimuth
+                L = layer.radiance_at(G, cos_s.T, np.arctan2(-u[..., 1], -u[..., 0]).T).T
+                val = scale * L * cos_s * cos_r / (r * 1e-3) ** 2 * area
                 if m.any():
                     val = np.where(m[:, None], val * self._meter(cos_r), val)
                 geo[a:a + chunk] = val.sum(1)
             out.append((group, spec * T, geo))
         return out
 
-    def _top_fresnel(self, pts, t0):
-        tau = opal_depth(self.ir, self._diffuse_fraction())
+    def _top_light(self, pts, layer, chunk=256):
+        """Per lamp group: the light arriving on the plate's top face at ``pts`` binned by
+        direction (:meth:`~lbscene.engine.light.opal_layer.OpalLayer.histogram`, its Fourier
+        coefficients, ``(S, N, M + 1)``): irradiance of an ideal cosine receiver from each
+        lamp sample (subsampled to about 500), with the azimuth it travels toward."""
         saved = self.fx.pop("diffuser")
+        n_phi = 2 * layer.modes + 32
         out = []
         try:
             for src in self.sources():
                 st = max(1, len(src["pos"]) // 500)
                 src = dict(src, pos=src["pos"][::st], w=src["w"][::st] * st,
                            nrm=None if src["nrm"] is None else src["nrm"][::st])
-                d_ = pts[:, None, :] + [0, 0, 1e-3] - src["pos"][None]
-                r = np.linalg.norm(d_, axis=2)
-                u = d_ / r[..., None]
-                cos_r = np.maximum(-u[..., 2], 0)
-                val = src["w"][None] * cos_r / (r * 1e-3) ** 2
-                # light entering the opal layer: t(θ_i) (lbscene.engine.light.plates)
-                val = val * opal_entry_relative(cos_r, self.ir.diffuser.ior, tau)
-                if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
-                    val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
-                val = val * _profile_factor(src, u)
-                top = pts + [0, 0, 1e-3]
-                if src["image_of"] is not None:
-                    val = val * src["image_of"].crosses(src["pos"], top)
-                for m in src["mirror"] or ():
-                    val = val * ~m.crosses(src["pos"], top)
-                for b in src["blockers"]:
-                    val = val * ~b.crosses(src["pos"], top)
-                out.append((src["group"], src["spectrum"], val.sum(1)))
+                coef = np.zeros((len(pts), len(layer.cos_nodes), layer.modes + 1), complex)
+                for a in range(0, len(pts), chunk):
+                    q = pts[a:a + chunk] + [0, 0, 1e-3]
+                    d_ = q[:, None, :] - src["pos"][None]
+                    r = np.linalg.norm(d_, axis=2)
+                    u = d_ / r[..., None]
+                    cos_r = np.maximum(-u[..., 2], 0)
+                    val = src["w"][None] * cos_r / (r * 1e-3) ** 2
+                    if src["nrm"] is not None:       # Lambertian surface sample: its own cosine
+                        val = val * np.maximum((u * src["nrm"][None]).sum(-1), 0.0)
+                    val = val * _profile_factor(src, u)
+                    if src["image_of"] is not None:
+                        val = val * src["image_of"].crosses(src["pos"], q)
+                    for m in src["mirror"] or ():
+                        val = val * ~m.crosses(src["pos"], q)
+                    for b in src["blockers"]:
+                        val = val * ~b.crosses(src["pos"], q)
+                    H = layer.histogram(cos_r, np.arctan2(u[..., 1], u[..., 0]), val, n_phi)
+                    coef[a:a + chunk] = layer.histogram_modes(H, layer.modes)
+                out.append((src["group"], src["spectrum"], coef))
         finally:
             self.fx["diffuser"] = saved
         return out

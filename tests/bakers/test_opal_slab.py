@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lbscene.bakers.opal_slab import (absorption_depth, fit_asymmetry, opal_slab_medium,
+from lbscene.bakers.opal_slab import opal_slab_medium
+from lbscene.engine.light.opal_layer import (absorption_depth, fit_asymmetry,
                                       scattered_transmittance_to_normal, slab_optics)
 
 PLATES = Path(__file__).resolve().parents[1] / "data" / "validation" / "plate-optics"

@@ -325,7 +325,7 @@ def _layer_under_a_small_panel(tmp_path, monkeypatch, thickness_mm, *, shifted, 
     z 600 mm) under a 20 × 20 mm panel at z 650 mm: ``(measured, σ, expected)`` radiance seen
     straight up through the layer under the panel, relative to the panel's own.  Expected:
     e^{-τ} plus the scattered ∫ f(μ_i → normal) μ_i dω_i over the panel, f from the
-    adding–doubling solution of :mod:`lbscene.bakers.opal_slab` (an infinitely wide, laterally
+    adding–doubling solution of :mod:`lbscene.engine.light.opal_layer` (an infinitely wide, laterally
     uniform layer; held to closed forms and a Monte Carlo simulation in
     ``tests/bakers/test_opal_slab.py``).  ``shifted``:
     rendered as the truth renders a booth (:meth:`MitsubaTruth.render_shift_mm`), else in the
@@ -357,7 +357,7 @@ def _layer_under_a_small_panel(tmp_path, monkeypatch, thickness_mm, *, shifted, 
 
     lamp, _ = radiance(1e-9)                       # the panel seen through a clear layer
     got, se = radiance(tau / thickness_mm)
-    from lbscene.bakers.opal_slab import scattered_transmittance_to_normal
+    from lbscene.engine.light.opal_layer import scattered_transmittance_to_normal
 
     mu, f = scattered_transmittance_to_normal(tau, g)
     n = 200                                        # the panel from the layer's top face

@@ -3,11 +3,9 @@
 
 Kind ``geometric`` (and spectral: the plate's transmittance).  Straight paths through the
 plate get its spectral transmittance and the Fresnel angular loss; an opal plate's diffuse
-fraction enters with its top face's Fresnel transmittance and its layer's entry law
-(:func:`lbscene.engine.light.plates.opal_entry_relative`, averaged for a tube over the arc of
-its surface each point of the plate sees, not taken along the tube's axis) and is re-emitted
-from the plate's cells with the opal exit law (Lambertian times the bottom face's Fresnel transmittance,
-:func:`lbscene.engine.light.plates.opal_exit_shape`).  The declared transmittance is the
+fraction enters its top face and is re-emitted from its bottom face's cells with the scattering
+layer's bidirectional law: the light of every emitter point on each cell binned by direction
+and carried to every exit direction and azimuth (:mod:`lbscene.engine.light.opal_layer`).  The declared transmittance is the
 plate's total at normal incidence (:func:`lbscene.engine.light.plates.reference_transmittance`).  A ``roughness`` plate (rough
 glass) has the rough GGX slab's :math:`T(θ)` on straight paths, or its BTDF on re-emitting
 cells when the lobe is wide (:mod:`lbscene.engine.light.rough_slab`).  A clear or rough plate
@@ -30,8 +28,8 @@ from pydantic import Field
 from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel,
                                                   PhysicalEffect)
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
-from lbscene.engine.light.plates import (OpalEntryWeight, absorption_squared, diffuser_fraction, diffuser_rect,
-                                         diffuser_transmittance_1nm, is_rough, opal_depth, opal_exit_shape,
+from lbscene.engine.light.plates import (absorption_squared, diffuser_fraction, diffuser_rect,
+                                         diffuser_transmittance_1nm, is_rough,
                                          plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
                                          reference_transmittance, slab_relative, specular_plate)
 from lbscene.engine.light.rough_slab import EXIT_PHI_STEPS, RoughSlab
@@ -161,8 +159,9 @@ class DiffuserEffect(PhysicalEffect):
                 PathChannel(1.0 - hit, None, None)]
 
     @staticmethod
-    def _cells(d, cell_size_mm):
-        """The plate's cells as quads facing down (counter-clockwise seen from below)."""
+    def _cells(d, cell_size_mm, face: int = 0):
+        """The plate's cells as quads facing down (counter-clockwise seen from below), in its
+        mid-plane (``face`` 0), its top face (+1) or its bottom face (−1)."""
         (cx, cy), (sx, sy) = d.centre_mm, d.size_mm
         nu = max(1, int(np.ceil(sx / cell_size_mm)))
         nv = max(1, int(np.ceil(sy / cell_size_mm)))
@@ -170,7 +169,7 @@ class DiffuserEffect(PhysicalEffect):
         ys = cy - sy / 2 + sy * np.arange(nv + 1) / nv
         X0, Y0 = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
         X1, Y1 = np.meshgrid(xs[1:], ys[1:], indexing="ij")
-        z = d.z_mm
+        z = d.z_mm + face * d.thickness_mm / 2
         return np.stack([np.stack([X0, Y0, np.full_like(X0, z)], -1),
                          np.stack([X0, Y1, np.full_like(X0, z)], -1),
                          np.stack([X1, Y1, np.full_like(X0, z)], -1),
@@ -193,8 +192,9 @@ class DiffuserEffect(PhysicalEffect):
         return np.clip(k, ROUGH_SUB_MIN, ROUGH_SUB_MAX).astype(int)
 
     @classmethod
-    def _rough_incoming(cls, ctx, p, direct):
-        """The light arriving on the top face of a rough plate's cells, per emitter point, in
+    def _incoming(cls, ctx, p, direct, cell_size_mm: float, face: int = 0):
+        """The light arriving on the top of the plate's cells (``cell_size_mm``, at ``face``:
+        :meth:`_cells`), per emitter point, in
         chunks of cells: yields ``(idx, light)`` for cells ``idx`` (sampled at ``k × k``
         sub-points, :meth:`_cell_subpoints`), ``light`` mapping each term's key to
         ``(term, E, cos_i, phi)``: ``E`` (n, k·k·N) the irradiance of each emitter point at each
@@ -204,8 +204,8 @@ class DiffuserEffect(PhysicalEffect):
         (sub-point × emitter point) arrays of a large plate do not all exist at once."""
         from lbscene.engine.light.geometry import quad_subpoints
 
-        polys = cls._cells(ctx.ir.diffuser, p.scattered_cell_size_mm)
-        ks = cls._cell_subpoints(ctx, polys, p.scattered_cell_size_mm)
+        polys = cls._cells(ctx.ir.diffuser, cell_size_mm, face)
+        ks = cls._cell_subpoints(ctx, polys, cell_size_mm)
         for k in np.unique(ks):
             k = int(k)
             cells = np.nonzero(ks == k)[0]
@@ -236,7 +236,7 @@ class DiffuserEffect(PhysicalEffect):
         """``(polys, terms, grid)``: the rough plate's cells, the lamp terms lighting them and,
         per cell and term, the exit radiance per unit :math:`(1 - f_d)` toward every exit bin
         and grid azimuth (:meth:`~lbscene.engine.light.rough_slab.RoughSlab.exit_radiance_grid`,
-        ``(C, n_θo, n_φ, K)``), summed over the cells' incoming light (:meth:`_rough_incoming`)
+        ``(C, n_θo, n_φ, K)``), summed over the cells' incoming light (:meth:`_incoming`)
         once; None when no light arrives.  Kept per forward-model cache under everything that
         changes the lamps' light on the plate (the booth, the lighting, the parameters of every
         effect that changes lamp light but the plate's diffuse fraction and transmittance scale,
@@ -255,7 +255,7 @@ class DiffuserEffect(PhysicalEffect):
         grids: dict = {}
         # the sub-points' light is used once, here: nothing of it is kept in the model's caches
         with ctx.transient():
-            for idx, light in cls._rough_incoming(ctx, p, direct):
+            for idx, light in cls._incoming(ctx, p, direct, p.scattered_cell_size_mm):
                 for tk, (t, E, cos_i, phi) in light.items():
                     if tk not in terms:
                         terms[tk] = t
@@ -278,7 +278,8 @@ class DiffuserEffect(PhysicalEffect):
 
         the slab's non-absorbing BTDF :math:`f_T` (:mod:`~lbscene.engine.light.rough_slab`) over the
         irradiance :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` (area
-        weight :math:`w_s`) of the cell's top face, :math:`ω_i` its direction.  A cell close
+        weight :math:`w_s`) of the cell, :math:`ω_i` its direction (the cells in the plate's
+        mid-plane: the slab shifts a nearly straight path sideways by less than its thickness).  A cell close
         to a lamp gets more sub-points (:meth:`_cell_subpoints`): under a tube 14 mm above the
         plate, 2 × 2 points on 25 mm cells put the light 2–5 % off between and beyond the tubes
         against Mitsuba 3 (validation scene ``aperture-diffuser``), 6 × 6 within 1 %."""
@@ -301,8 +302,6 @@ class DiffuserEffect(PhysicalEffect):
 
     @classmethod
     def secondary_sources(cls, ctx, p, direct):
-        from lbscene.engine.light.geometry import quad_subpoints
-
         ir = ctx.ir
         if ir.diffuser is None:
             return []
@@ -314,34 +313,83 @@ class DiffuserEffect(PhysicalEffect):
                 out.append(src)
         if fd <= 0:
             return out
-        d = ir.diffuser
-        polys = cls._cells(d, p.cell_size_mm)
-        pts, w = quad_subpoints(polys, 2)
-        top = pts.reshape(-1, 3) + np.array([0.0, 0.0, 1e-3])
-        up = np.tile([0.0, 0.0, 1.0], (top.shape[0], 1))
-        # light arriving on the top side: cos-weighted and weighted by the part of it the layer
-        # scatters through, relative to normal incidence (opal_entry_relative)
-        tau = opal_depth(ir, fd)
-        terms = direct(top, up, exclude=(cls.id,), incidence_weight=OpalEntryWeight(d.ior, tau))
+        src = cls._opal_source(ctx, p, direct, fd)
+        return out + ([src] if src is not None else [])
+
+    @classmethod
+    def _opal_histograms(cls, ctx, p, direct, layer):
+        """``(top, terms, B)``: an opal plate's cells on its top face, the lamp terms lighting
+        them and per cell and term the Fourier coefficients of the light arriving, binned by
+        incidence node and azimuth (:meth:`~lbscene.engine.light.opal_layer.OpalLayer.histogram`,
+        ``(C, N, MAX_MODES + 1, K)``); None when no light arrives.  They do not depend on the
+        layer's depth or asymmetry (only on its faces' index, through the nodes): kept per
+        forward-model cache under everything that changes the lamps' light on the plate, as
+        :meth:`_rough_exit`, a fit varying the plate's diffuse fraction or transmittance reads
+        them back."""
+        from lbscene.engine.light.opal_layer import MAX_MODES
+
+        ir = ctx.ir
+        key = (ir.content_hash, *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale")}),
+               float(p.cell_size_mm), "opal")
+        store = ctx.cache.setdefault("_opal_light", {})
+        if key in store:
+            return store[key]
+        n_phi = 2 * MAX_MODES + 32
+        polys = cls._cells(ir.diffuser, p.cell_size_mm, +1)
+        terms: dict = {}
+        coef: dict = {}
+        with ctx.transient():
+            for idx, light in cls._incoming(ctx, p, direct, p.cell_size_mm, +1):
+                for tk, (t, E, cos_i, phi) in light.items():
+                    if tk not in terms:
+                        terms[tk] = t
+                        coef[tk] = np.zeros((polys.shape[0], len(layer.cos_nodes), MAX_MODES + 1), complex)
+                    coef[tk][idx] = layer.histogram_modes(layer.histogram(cos_i, phi, E, n_phi), MAX_MODES)
+        hit = None
+        if terms:
+            hit = (polys, list(terms.values()), np.stack([coef[tk] for tk in terms], axis=-1))
+        if len(store) >= ROUGH_RADIANCE_MEMO:
+            store.pop(next(iter(store)))
+        store[key] = hit
+        return hit
+
+    @classmethod
+    def _opal_source(cls, ctx, p, direct, fd):
+        """An opal plate's scattered light as a :class:`DirectionalSource` on its bottom face: per
+        cell and term
+
+        .. math:: L(ω_o) = f_d\\,\\frac{T_\\text{decl}(λ)}{T_s(0)}
+                  \\sum_{s} w_s \\sum_{e} f(ω_{i,se}, ω_o)\\, E_{se},
+
+        the layer's bidirectional law :math:`f` (:mod:`~lbscene.engine.light.opal_layer`: the
+        scattering layer of the plate's declared total and diffuse fraction, every azimuth;
+        :func:`~lbscene.engine.light.plates.opal_plate_layer`) over the irradiance
+        :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` of the cell's top
+        face, :math:`T_s(0)` the layer's scattered total at normal incidence (so that the plate
+        scatters :math:`f_d T_\\text{decl}` of a beam along its normal).  Light enters on the top
+        face and leaves from the bottom one, a thickness apart: light that goes on sideways in
+        a forward-scattering layer (a plate lit at a grazing angle from tubes close above)
+        leaves it that way."""
+        from lbscene.engine.light.plates import opal_plate_layer
+
+        ir = ctx.ir
+        layer = opal_plate_layer(ir, fd)
+        hit = cls._opal_histograms(ctx, p, direct, layer)
+        if hit is None:
+            return None
+        top, terms, B = hit
+        polys = top - np.array([0.0, 0.0, ir.diffuser.thickness_mm])
+        G = layer.exit_modes(B[:, :, :layer.modes + 1])                     # (C, M+1, N, K)
+        scale = fd / float(layer.scattered_total(np.ones(1))[0])
         T = diffuser_transmittance_1nm(ctx, p)
-        exit_, descr = [], []
-        for t in terms:
-            e = (t.geo.reshape(polys.shape[0], -1) * w).sum(axis=1)
-            exit_.append(fd * e)
-            descr.append(t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser"))
-        if not exit_:
-            return out
-        M = np.stack(exit_, axis=1)                                             # (C, K) exitance
-        ior = d.ior
+        descr = [t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser") for t in terms]
 
         def radiance(dirs):
-            # the scattered light leaves through the bottom face: (1 − F(θ_o)) / (1 − F_h)
-            # times a Lambertian emitter's radiance M/π (plates.opal_exit_shape)
-            g = opal_exit_shape(np.clip(-dirs[..., 2], 0.0, 1.0), ior, tau)   # (C, R)
-            return g[..., None] * (M[:, None, :] / np.pi)
+            cos_o = np.clip(-dirs[..., 2], 0.0, 1.0)                             # (C, R)
+            phi_o = np.arctan2(dirs[..., 1], dirs[..., 0])
+            return scale * layer.radiance_at(G, cos_o, phi_o)
 
-        return out + [DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)), radiance,
-                                        descr)]
+        return DirectionalSource(polys, np.tile([0.0, 0.0, -1.0], (polys.shape[0], 1)), radiance, descr)
 
 
 def _image_channels(ctx, p, es, rx):

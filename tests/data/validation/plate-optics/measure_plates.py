@@ -57,7 +57,9 @@ def measure(name: str, *, spp: int = SPP, passes: int = PASSES) -> dict:
     d = PLATES[name]
     medium = None
     if d["scattering"]["type"] == "lambertian":
-        medium = opal_medium(d["transmittance"], d["scattering"]["diffuse_fraction"], d["ior"], d["thickness_mm"])
+        # Mitsuba's own bisection (the plates stay independent of the model's layer solution)
+        medium = opal_medium(d["transmittance"], d["scattering"]["diffuse_fraction"], d["ior"], d["thickness_mm"],
+                             asymmetry="bisection")
     mu = np.cos(np.deg2rad(THETA_DEG))
     res = _normalised_optics(plate_bsdf(d["scattering"], d["ior"]), d["thickness_mm"], mu, medium=medium,
                              spp=spp, passes=passes)
