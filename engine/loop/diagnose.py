@@ -733,7 +733,8 @@ def _configure(b: _Base, items: tuple[str, ...]):
                 post.append((it, H))
                 continue
             cur_ir, add_eff, add_free = H.augment(cur_ir, b.lighting, b.meas.known_output_groups)
-            new_eff = {**new_eff, **add_eff}
+            # the hypothesis' effects at the diagnosis' resolution, as a candidate's are
+            new_eff = {**new_eff, **_coarsen(add_eff)}
             names = {fp.target for fp in free}
             free = list(free) + [fp for fp in add_free if fp.target not in names]
         else:

@@ -88,6 +88,10 @@ class DiffuserEffect(PhysicalEffect):
                                 "lobe's footprint on the plate exceeds scattered_cell_size_mm or "
                                 "the lobe is wide, 90 % of its light beyond 20° of the straight "
                                 "line).")
+        cell_subpoints: int | None = Field(None, ge=1, le=16,
+                                           description="Sub-points a side of each re-emitting cell at which "
+                                                       "the lamps' light on the plate is gathered (default: "
+                                                       "by the cell's distance to the lamps, 2 to 8).")
         scattered_cell_size_mm: float = Field(25.0, gt=1, le=1000,
                                               description="Cell size of a roughness plate whose light "
                                                           "re-emits through the slab's BTDF.")
@@ -95,6 +99,20 @@ class DiffuserEffect(PhysicalEffect):
     @classmethod
     def applicable(cls, ir, lighting):
         return None if ir.diffuser is not None else "the booth has no diffuser: section"
+
+    #: the diagnosis refits every candidate (and profiles a hypothesised plate's height): it
+    #: gathers the light on an opal plate's cells at least this coarse, 2 × 2 points a cell
+    diagnosis_cell_mm: float = 100.0
+
+    @classmethod
+    def diagnosis_params(cls, params: dict) -> dict:
+        """Parameters used for the diagnosis' many refits: an opal plate's cells 100 mm, their
+        light gathered at 2 × 2 points (the plate's law unchanged; its light on the cells is
+        coarser, as the inter-reflection's 100 mm patches are)."""
+        out = dict(params or {})
+        out["cell_size_mm"] = max(float(out.get("cell_size_mm", 50.0)), cls.diagnosis_cell_mm)
+        out["cell_subpoints"] = 2
+        return out
 
     @staticmethod
     def _scattered(ctx, p) -> bool:
@@ -205,7 +223,10 @@ class DiffuserEffect(PhysicalEffect):
         from lbscene.engine.light.geometry import quad_subpoints
 
         polys = cls._cells(ctx.ir.diffuser, cell_size_mm, face)
-        ks = cls._cell_subpoints(ctx, polys, cell_size_mm)
+        if p.cell_subpoints is not None and face != 0:
+            ks = np.full(len(polys), int(p.cell_subpoints))
+        else:
+            ks = cls._cell_subpoints(ctx, polys, cell_size_mm)
         for k in np.unique(ks):
             k = int(k)
             cells = np.nonzero(ks == k)[0]
@@ -330,7 +351,7 @@ class DiffuserEffect(PhysicalEffect):
 
         ir = ctx.ir
         key = (ir.content_hash, *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale")}),
-               float(p.cell_size_mm), "opal")
+               float(p.cell_size_mm), p.cell_subpoints, "opal")
         store = ctx.cache.setdefault("_opal_light", {})
         if key in store:
             return store[key]
