@@ -377,6 +377,7 @@ class OpalLayer:
         E = 1.0 - F
         self._unscattered = np.diag(E * E * e / (1.0 - F * F * e * e))
         self._kernels: dict[int, np.ndarray] = {}
+        self._parts = None
         # the scattered total per incidence node: the mode-0 exit flux
         flux = (2.0 * np.pi * n * n * mu * w)[self._sel]
         self._scattered_nodes = flux @ self._mode(0)
@@ -384,6 +385,11 @@ class OpalLayer:
     def _mode(self, m: int) -> np.ndarray:
         """:math:`f_m(μ_a → μ_o)` at ``[o, a]`` on :attr:`cos_nodes` (computed once)."""
         K = self._kernels.get(m)
+        if K is None and self._parts is not None:          # a blend (:meth:`blend`): its parts' modes
+            (a, b), w = self._parts, self._parts_weight
+            zero = np.zeros_like(a._mode(0))
+            Ka, Kb = (x._mode(m) if m <= x.modes else zero for x in (a, b))
+            K = self._kernels[m] = (1.0 - w) * Ka + w * Kb
         if K is None:
             mu, w, F, n = self._mu, self._w, self._F, self.ior
             with blas_single_thread():
@@ -408,7 +414,8 @@ class OpalLayer:
         """The layer between ``a`` and ``b`` (same faces): every mode's kernel and the scattered
         totals :math:`(1 - w)\\,a + w\\,b`.  A fit that moves the plate's optical depth reads
         its law between layers solved at fixed depths (:func:`opal_layer_at`): continuous in the
-        depth, and a new solution only when the fit leaves their interval."""
+        depth, and a new solution only when the fit leaves their interval.  A mode is blended
+        when first asked for (the totals need mode 0 only)."""
         if a.ior != b.ior:
             raise ValueError("layers with other faces cannot be blended")
         w = float(w)
@@ -418,12 +425,8 @@ class OpalLayer:
         out.ior, out.cos_nodes, out._L = a.ior, a.cos_nodes, a._L
         out._mu, out._w, out._F, out._sel = a._mu, a._w, a._F, a._sel
         out.modes = max(a.modes, b.modes)
-        zero = np.zeros_like(a._mode(0))
-
-        def mode(layer, m):
-            return layer._mode(m) if m <= layer.modes else zero
-
-        out._kernels = {m: (1.0 - w) * mode(a, m) + w * mode(b, m) for m in range(out.modes + 1)}
+        out._kernels = {}
+        out._parts, out._parts_weight = (a, b), w
         out._scattered_nodes = (1.0 - w) * a._scattered_nodes + w * b._scattered_nodes
         out._unscattered = None
         return out
@@ -516,31 +519,38 @@ class OpalLayer:
         corr = ((-1.0) ** m / hat).reshape((1, 1, modes + 1) + (1,) * (H.ndim - 3))
         return Hf * corr
 
-    def exit_modes(self, coef) -> np.ndarray:
+    def exit_modes(self, coef, modes: int | None = None) -> np.ndarray:
         """``(C, M + 1, N, …)`` complex: per group the scattered radiance leaving toward each
         node's cosine in each azimuthal mode, :math:`G_m(μ_o) = \\sum_a f_m(μ_a → μ_o) B_{m,a}`,
         from the arriving light's coefficients ``coef`` (:meth:`histogram_modes`, at least
-        :attr:`modes` + 1 of them)."""
-        B = np.asarray(coef)[:, :, :self.modes + 1]
-        return np.einsum("moa,cam...->cmo...", self.kernel, B)
+        :math:`M` + 1 of them); :math:`M` = :attr:`modes`, or ``modes`` where fewer (a coarser
+        azimuthal law: the series cut there)."""
+        M = self.modes if modes is None else max(0, min(int(modes), self.modes))
+        B = np.asarray(coef)[:, :, :M + 1]
+        K = np.asarray([self._mode(m) for m in range(M + 1)])
+        return np.einsum("moa,cam...->cmo...", K, B)
 
     def radiance_at(self, modes, cos_o, phi_o_rad) -> np.ndarray:
         """``(C, R, …)``: the radiance of :meth:`exit_modes` ``(C, M + 1, N, …)`` toward ``R``
         directions per group ``(cos_o, phi_o_rad)`` (C, R): linear in the cosine between nodes,
         :math:`\\sum_m (2 - δ_{m0})\\,\\mathrm{Re}(G_m e^{i m φ_o})`."""
         G = np.asarray(modes)
-        C = G.shape[0]
+        C, M1, N = G.shape[:3]
+        trail = G.shape[3:]
         jo, fo = self._split(cos_o)                                           # (C, R)
-        c = np.arange(C)[:, None]
-        g0 = G[c, :, jo]                                                      # (C, R, M+1, …)
-        g1 = G[c, :, jo + 1]
-        fo_ = fo.reshape(fo.shape + (1,) * (g0.ndim - 2))
-        val = (1.0 - fo_) * g0 + fo_ * g1
-        m = np.arange(G.shape[1])
-        ph = np.exp(1j * np.asarray(phi_o_rad, float)[..., None] * m)          # (C, R, M+1)
-        ph = ph * np.where(m == 0, 1.0, 2.0)
-        ph = ph.reshape(ph.shape + (1,) * (val.ndim - 3))
-        return np.real(np.sum(val * ph, axis=2))
+        # one mode at a time: the (C, R, M + 1, …) arrays of every mode at once are large
+        idx = (np.arange(C)[:, None] * N + jo).ravel()
+        w1 = fo.reshape(fo.shape + (1,) * len(trail))
+        phi = np.asarray(phi_o_rad, float).reshape(w1.shape)
+        out = np.zeros(jo.shape + trail)
+        for m in range(M1):
+            Gm = G[:, m].reshape((C * N,) + trail)
+            v = (1.0 - w1) * Gm[idx].reshape(out.shape) + w1 * Gm[idx + 1].reshape(out.shape)
+            if m == 0:
+                out += v.real
+            else:
+                out += 2.0 * (v.real * np.cos(m * phi) - v.imag * np.sin(m * phi))
+        return out
 
 
 #: the optical depths :func:`opal_layer_at` solves the layer at: a geometric grid of this ratio
@@ -555,18 +565,21 @@ def opal_layer_at(tau: float, T: float, ior: float) -> OpalLayer:
     nearer end of :math:`[0, G_\\text{max}]` where none does).  The light a layer scatters
     changes by up to 1.6 % for 1 % in its depth: a fit moving the depth needs the law
     continuous, and solving it at every step (0.2 to 0.7 s) would dominate the fit."""
-    u = math.log(max(float(tau), 1e-300)) / math.log(DEPTH_STEP)
+    return _layer_at(round(float(tau), 12), round(float(T), 9), round(float(ior), 9))
+
+
+@lru_cache(maxsize=64)
+def _layer_at(tau: float, T: float, n: float) -> OpalLayer:
+    u = math.log(max(tau, 1e-300)) / math.log(DEPTH_STEP)
     i0 = math.floor(u)
     w = u - i0
-    T = round(float(T), 9)
-    n = round(float(ior), 9)
     lo = _grid_layer(i0, T, n)
     if w < 1e-9:
         return lo
     return OpalLayer.blend(lo, _grid_layer(i0 + 1, T, n), w)
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=160)
 def _grid_layer(i: int, T: float, ior: float) -> OpalLayer:
     tau = DEPTH_STEP ** i
     try:
@@ -576,7 +589,7 @@ def _grid_layer(i: int, T: float, ior: float) -> OpalLayer:
     return _opal_layer(round(tau, 12), round(g, 9), ior)
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=160)
 def _opal_layer(tau: float, g: float, ior: float) -> OpalLayer:
     return OpalLayer(tau, g, ior)
 

@@ -1099,8 +1099,7 @@ class RadiosityTransport:
         pairs = self.plate_pairs
         if pairs is not None and T is not None:           # an opal plate's faces pass light on
             k = self._coupling_ratio(T)
-            S = F_sum.copy()
-            F_sum = S.copy()
+            S, F_sum = F_sum, F_sum.copy()
             F_sum[pairs[:, 0]] += k * S[pairs[:, 1]]
             F_sum[pairs[:, 1]] += k * S[pairs[:, 0]]
         q = float(np.max(r * F_sum))                       # bound on the spectral radius of ρF
@@ -1224,11 +1223,23 @@ class RadiosityTransport:
         """``M`` with the entries whose lines cross the plate (``S`` < 0) times ``T·|S|``."""
         return np.where(S < 0, M * (-S) * T, M)
 
+    def _F_crossed(self, T):
+        """The form factors past the plate at transmittance ``T`` (:meth:`_crossed`), the last
+        band class's kept (the gather of the patches and of the receivers both read it)."""
+        if self.cross_pp is None:
+            return self.F
+        hit = getattr(self, "_F_crossed_last", None)
+        if hit is not None and hit[0] == float(T):
+            return hit[1]
+        F = self._crossed(self.F, self.cross_pp, T)
+        self._F_crossed_last = (float(T), F)
+        return F
+
     def _F_band(self, T, Rm=()):
         """The form factors of one band class: past the plate at its transmittance ``T`` (its
         images at :math:`R(θ)` for a specular plate) and with the mirrors' images at their
         reflectances ``Rm`` (one per group)."""
-        F = self.F if T is None or self.cross_pp is None else self._crossed(self.F, self.cross_pp, T)
+        F = self.F if T is None else self._F_crossed(T)
         if T is not None and self.plate_pairs is not None:
             F = self._plate_coupling(F, T) + self._exit_shape_correction(F, self.patches.centres, T)
         if self._mirror and T is not None:
@@ -1307,7 +1318,7 @@ class RadiosityTransport:
             return 0.0
         layer = opal_plate_layer(ir, float(ir.diffuser.scattering["diffuse_fraction"]))
         c = self.patches.centres
-        F = self.F if self.cross_pp is None else self._crossed(self.F, self.cross_pp, T)
+        F = self._F_crossed(T)
         out = 0.0
         for face, other, sign in ((pairs[:, 1], pairs[:, 0], -1.0), (pairs[:, 0], pairs[:, 1], 1.0)):
             d = np.asarray(points, float)[:, None, :] - c[face][None, :, :]

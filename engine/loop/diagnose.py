@@ -439,7 +439,7 @@ def _enabled_fit_params(ir, lighting, effects, already) -> list:
     for eid in effects:
         cls = get_effect(eid)
         cost = getattr(cls, "refit_cost_s", None)
-        if cost is not None and cost(ir, effects.get(eid)) > MAX_JOINT_REFIT_COST_S:
+        if cost is not None and cost(ir, effects.get(eid), lighting) > MAX_JOINT_REFIT_COST_S:
             continue  # e.g. radiosity on a fine mesh: keep the booth's values
         fn = getattr(cls, "fit_parameters_for", None)
         fps = fn(ir, lighting) if fn else dict(getattr(cls, "fit_parameters", {}) or {})

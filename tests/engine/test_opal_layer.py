@@ -171,3 +171,39 @@ def test_a_layer_between_the_solved_depths_is_continuous_and_close_to_its_own_so
     mid = node * DEPTH_STEP ** 0.5
     solved = opal_layer(mid, fit_asymmetry(0.55, mid, 1.0), 1.0)
     np.testing.assert_allclose(opal_layer_at(mid, 0.55, 1.0).btdf(ci, co, 0.4), solved.btdf(ci, co, 0.4), rtol=1e-3)
+
+
+def test_a_cut_azimuthal_series_is_the_law_of_that_many_modes():
+    # exit_modes(…, modes=k): the radiance the law gives with its series stopped after k modes, as
+    # btdf summed by hand over those modes; a layer of g 0.55 (a booth's opal plate) converges
+    # like g^m: 12 modes (the diagnosis' cut) within 0.1 % of every mode, 2 modes far from it
+    layer = opal_layer(2.0, 0.55, 1.5)
+    assert layer.modes > 12
+    rng = np.random.default_rng(7)
+    C, P, R = 2, 300, 25
+    # light from tubes close above: grazing, from nearly one azimuth (the high modes matter)
+    ci = rng.uniform(0.25, 0.45, (C, P))
+    phi = rng.normal(0.0, 0.1, (C, P))
+    wgt = rng.uniform(0.0, 1.0, (C, P))
+    B = layer.histogram_modes(layer.histogram(ci, phi, wgt, 128), layer.modes)
+    co = rng.uniform(0.05, 1.0, (C, R))
+    po = rng.uniform(-np.pi, np.pi, (C, R))
+    full = layer.radiance_at(layer.exit_modes(B), co, po)
+    cut = {k: layer.radiance_at(layer.exit_modes(B, k), co, po) for k in (2, 12)}
+    assert layer.exit_modes(B, 12).shape[1] == 13
+    np.testing.assert_allclose(cut[12], full, rtol=1e-3)
+    assert np.max(np.abs(cut[2] / full - 1.0)) > 1e-2
+    # the cut series by hand: mode 0 once, modes 1…k twice, each cos(m Δφ)
+    ji, fi = layer._split(ci)
+    jo, fo = layer._split(co)
+    kernel = layer.kernel
+    by_hand = np.zeros((C, R))
+    for m in range(3):
+        Km = kernel[m]
+        f = ((1 - fo[:, None, :]) * ((1 - fi[:, :, None]) * Km[jo[:, None, :], ji[:, :, None]]
+                                     + fi[:, :, None] * Km[jo[:, None, :], ji[:, :, None] + 1])
+             + fo[:, None, :] * ((1 - fi[:, :, None]) * Km[jo[:, None, :] + 1, ji[:, :, None]]
+                                 + fi[:, :, None] * Km[jo[:, None, :] + 1, ji[:, :, None] + 1]))
+        azimuth = np.cos(m * (po[:, None, :] - phi[:, :, None]))
+        by_hand += (1.0 if m == 0 else 2.0) * np.einsum("cp,cpr->cr", wgt, f * azimuth)
+    np.testing.assert_allclose(cut[2], by_hand, rtol=3e-3, atol=1e-3 * np.abs(by_hand).max())

@@ -20,6 +20,7 @@ patches of the plate's hemispherical reflectance.  The plate itself
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -89,9 +90,13 @@ class DiffuserEffect(PhysicalEffect):
                                 "the lobe is wide, 90 % of its light beyond 20° of the straight "
                                 "line).")
         cell_subpoints: int | None = Field(None, ge=1, le=16,
-                                           description="Sub-points a side of each re-emitting cell at which "
-                                                       "the lamps' light on the plate is gathered (default: "
-                                                       "by the cell's distance to the lamps, 2 to 8).")
+                                           description="Sub-points a side of each of an opal plate's cells at "
+                                                       "which the lamps' light on the plate is gathered "
+                                                       "(default: by the cell's distance to the lamps, 2 to 8).")
+        opal_modes: int | None = Field(None, ge=0, le=48,
+                                       description="Azimuthal modes of an opal plate's law kept for the "
+                                                   "lamps' light through it (default: every mode the "
+                                                   "layer's asymmetry needs, at most 48).")
         scattered_cell_size_mm: float = Field(25.0, gt=1, le=1000,
                                               description="Cell size of a roughness plate whose light "
                                                           "re-emits through the slab's BTDF.")
@@ -103,16 +108,59 @@ class DiffuserEffect(PhysicalEffect):
     #: the diagnosis refits every candidate (and profiles a hypothesised plate's height): it
     #: gathers the light on an opal plate's cells at least this coarse, 2 × 2 points a cell
     diagnosis_cell_mm: float = 100.0
+    #: … and keeps at most this many azimuthal modes of an opal plate's law
+    diagnosis_opal_modes: int = 12
 
     @classmethod
     def diagnosis_params(cls, params: dict) -> dict:
         """Parameters used for the diagnosis' many refits: an opal plate's cells 100 mm, their
-        light gathered at 2 × 2 points (the plate's law unchanged; its light on the cells is
-        coarser, as the inter-reflection's 100 mm patches are)."""
+        light gathered at 2 × 2 points and its law's azimuthal series cut after
+        :attr:`diagnosis_opal_modes` modes (a coarser plate, as the inter-reflection's 100 mm
+        patches are: a forward-scattering layer, g 0.95, needs 48 modes, each a layer solve at
+        every depth a fit visits)."""
         out = dict(params or {})
         out["cell_size_mm"] = max(float(out.get("cell_size_mm", 50.0)), cls.diagnosis_cell_mm)
         out["cell_subpoints"] = 2
+        modes = out.get("opal_modes")
+        out["opal_modes"] = min(cls.diagnosis_opal_modes, cls.diagnosis_opal_modes if modes is None else int(modes))
         return out
+
+    #: seconds per (plate sub-point × lamp emitter point) pair of an opal plate's light (gathered
+    #: per emitter point, binned, sent through the layer to every receiver): a fit's forward
+    #: evaluation redoes it whenever a lamp's light on the plate changes
+    opal_pair_cost_s: float = 1.0e-6
+
+    @classmethod
+    def refit_cost_s(cls, ir, params: dict, lighting: str | None = None) -> float:
+        """Rough seconds per forward evaluation of the light an opal part of the plate scatters
+        (refitting ``diffuse_fraction`` gives a clear or rough plate one): the plate's cells at
+        ``cell_size_mm`` times ``cell_subpoints``² sub-points (the default's smallest, 2 × 2,
+        when not set) times the lamps' emitter points (a tube's line points times
+        :data:`~lbscene.engine.light.forward.PER_POINT_AROUND` around it and its end caps, a
+        panel's grid, one for a bulb; mirror images not counted), times :attr:`opal_pair_cost_s`
+        (an order of magnitude: aperture masks and mirror images make a pair up to 3× dearer,
+        bare tubes over a plate in a black box 5× cheaper);
+        ``lighting`` None: the costliest lighting."""
+        from lbscene.engine.light.forward import PER_POINT_AROUND
+
+        d = ir.diffuser
+        if d is None:
+            return 0.0
+        q = dict(params or {})
+        cell = float(q.get("cell_size_mm") or 50.0)
+        k = int(q.get("cell_subpoints") or 2)
+        cells = math.ceil(d.size_mm[0] / cell) * math.ceil(d.size_mm[1] / cell)
+
+        def points(lp):
+            if lp.kind == "tube":
+                return lp.point_sources * PER_POINT_AROUND + (2 if lp.end_caps else 0)
+            return len(lp.point_positions_mm()) if lp.kind == "panel" else 1
+
+        def emitters(name):
+            return sum(points(lp) for lp, _ in ir.lamps_on(name))
+
+        names = [lighting] if lighting in ir.lighting else list(ir.lighting)
+        return cells * k * k * max((emitters(n) for n in names), default=0) * cls.opal_pair_cost_s
 
     @staticmethod
     def _scattered(ctx, p) -> bool:
@@ -400,7 +448,7 @@ class DiffuserEffect(PhysicalEffect):
             return None
         top, terms, B = hit
         polys = top - np.array([0.0, 0.0, ir.diffuser.thickness_mm])
-        G = layer.exit_modes(B[:, :, :layer.modes + 1])                     # (C, M+1, N, K)
+        G = layer.exit_modes(B, p.opal_modes)                               # (C, M+1, N, K)
         scale = fd / float(layer.scattered_total(np.ones(1))[0])
         T = diffuser_transmittance_1nm(ctx, p)
         descr = [t.derived(spectral_key="diffuser", spectrum_factor=T, kind="diffuser") for t in terms]

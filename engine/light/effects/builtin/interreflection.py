@@ -61,8 +61,9 @@ class InterreflectionEffect(PhysicalEffect):
         return out
 
     @classmethod
-    def refit_cost_s(cls, ir, params: dict) -> float:
-        """Rough seconds per forward evaluation when ``reflectance_scale`` changes (LU per band)."""
+    def refit_cost_s(cls, ir, params: dict, lighting: str | None = None) -> float:
+        """Rough seconds per forward evaluation when ``reflectance_scale`` changes (LU per band;
+        the same in every lighting)."""
         ps = float((params or {}).get("patch_size_mm", 100.0))
         meshes = bool((params or {}).get("meshes", True))
         n = sum(s.area_mm2() for s in ir.surfaces if s.role != "mesh") / ps ** 2
