@@ -39,8 +39,11 @@ def test_usage_errors_under_format_json_too(run_cli):
 
 def test_shell_completion_is_available():
     exe = str(Path(sys.executable).parent / "lbscene")          # the installed console script
-    p = subprocess.run([exe, "--show-completion", "bash"], capture_output=True, text=True, cwd=REPO)
-    assert p.returncode == 0
+    # typed in bash, as a user does (the completion script is the detected shell's; bash stays the
+    # parent: a lone command in `bash -c` would replace it, leaving no shell to detect)
+    p = subprocess.run(["bash", "-c", '"$0" --show-completion; exit $?', exe], capture_output=True, text=True,
+                       cwd=REPO)
+    assert p.returncode == 0, p.stderr
     assert "complete -o default -F _lbscene_completion lbscene" in p.stdout
     p = subprocess.run([exe], capture_output=True, text=True, cwd=REPO,
                        env={**os.environ, "_LBSCENE_COMPLETE": "complete_bash", "COMP_WORDS": "lbscene rend",
