@@ -114,6 +114,10 @@ def test_compare_report_with_the_default_diagnosis_as_installed(walk_both, tmp_p
     _parse_html(html)
     assert "verdict: <b>missing:detector_cosine_error</b>" in html
     assert "Suspects" in html and "Add to the booth file" in html
+    # the glass plate's diffuse fraction is not refitted with every candidate (its opal part would
+    # gather the light of the D65 tubes' 3200 points and their mirror images): the user is told
+    assert "effect.diffuser.diffuse_fraction" in res["diagnosis"]["joint_parameters_held_for_cost"]
+    assert re.search(r"too dear to refit with every candidate\): [^<]*effect\.diffuser\.diffuse_fraction", html)
     # the run is in the history, and the history command reads it back
     h = _lb("history", walk, "--format", "json", cwd=tmp_path)
     _assert_clean(h.returncode, h.stdout, h.stderr)

@@ -368,6 +368,9 @@ class Diagnosis:
     #: values because these data cannot pin them (see _pinned_by_data)
     refitted: list[str] = field(default_factory=list)
     held: list[str] = field(default_factory=list)
+    #: … and those held because refitting them would cost too much per forward evaluation (their
+    #: effect's analytic ``refit_cost_s`` above :data:`MAX_JOINT_REFIT_COST_S`)
+    held_for_cost: list[str] = field(default_factory=list)
     #: refits with two effects together (when no single one reaches the noise)
     pairs: list[Suspect] = field(default_factory=list)
     confidence: Confidence | None = None
@@ -387,7 +390,8 @@ class Diagnosis:
                 "structure_before": _r(self.structure_before),
                 "base_consistent_with_noise": self.consistent,
                 "joint_parameters_refitted": self.refitted,
-                "joint_parameters_held": self.held}
+                "joint_parameters_held": self.held,
+                "joint_parameters_held_for_cost": self.held_for_cost}
 
 
 # --------------------------------------------------------------------------- snippets
@@ -429,9 +433,10 @@ def effects_snippet(effects: dict, highlight: str | set | None = None) -> str:
 MAX_JOINT_REFIT_COST_S = 0.15
 
 
-def _enabled_fit_params(ir, lighting, effects, already) -> list:
+def _enabled_fit_params(ir, lighting, effects, already, costly: list | None = None) -> list:
     """Fit parameters of the effects the booth already enables (refitted with each candidate, so
-    an earlier round's estimate is not frozen while it was biased by the effect still missing)."""
+    an earlier round's estimate is not frozen while it was biased by the effect still missing);
+    those of an effect whose refit costs too much are left out (appended to ``costly``)."""
     from lbscene.engine.light.effects.registry import get_effect
 
     out = []
@@ -439,13 +444,17 @@ def _enabled_fit_params(ir, lighting, effects, already) -> list:
     for eid in effects:
         cls = get_effect(eid)
         cost = getattr(cls, "refit_cost_s", None)
-        if cost is not None and cost(ir, effects.get(eid), lighting) > MAX_JOINT_REFIT_COST_S:
-            continue  # e.g. radiosity on a fine mesh: keep the booth's values
+        dear = cost is not None and cost(ir, effects.get(eid), lighting) > MAX_JOINT_REFIT_COST_S
         fn = getattr(cls, "fit_parameters_for", None)
         fps = fn(ir, lighting) if fn else dict(getattr(cls, "fit_parameters", {}) or {})
         for name, b in fps.items():
             fp = effect_parameter(eid, name, effects, b)
-            if fp.target not in names:
+            if fp.target in names:
+                continue
+            if dear:    # e.g. radiosity on a fine mesh: keep the booth's values
+                if costly is not None:
+                    costly.append(fp)
+            else:
                 out.append(fp)
     return out
 
@@ -659,11 +668,12 @@ class _Base:
 
 def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list, list]:
     """Fit the booth as declared (with the joint parameters the data pin down): the
-    :class:`_Base`, the refitted joint parameters and the held ones."""
+    :class:`_Base`, the refitted joint parameters, the held ones and those held for their cost."""
     ir, lighting = meas.ir, meas.lighting
     effects = _coarsen(base_problem.effects)
     noise = noise_model(meas)
-    joint = _enabled_fit_params(ir, lighting, effects, base_problem.free)
+    costly: list = []
+    joint = _enabled_fit_params(ir, lighting, effects, base_problem.free, costly)
     # which joint parameters are affordable is decided by each effect's analytic cost model
     # (refit_cost_s), never by timing: the verdict must not depend on the machine's load
     joint, held = _pinned_by_data(meas, effects, list(base_problem.free), joint, noise, cache)
@@ -685,7 +695,7 @@ def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list,
                          level_test=bool(meas.known_output_groups)),
               known_all=bool(base_problem.groups) and set(base_problem.groups) <= set(meas.known_output_groups or ()),
               problem=base_fp)
-    return b, joint, held
+    return b, joint, held, costly
 
 
 def _candidate_items(ir, lighting: str, effects: dict, candidates) -> tuple[list[str], dict[str, str]]:
@@ -948,7 +958,7 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
              progress=None, cache: dict | None = None) -> Diagnosis:
     """Refit with each missing effect and rank the suspects (see the module docstring)."""
     cache = base_problem.cache if cache is None else cache
-    b, joint, held = _fit_base(meas, base_problem, cache)
+    b, joint, held, costly = _fit_base(meas, base_problem, cache)
     structure_before = moran_i(b.pts, b.fit.residual_percent) if len(b.pts) else float("nan")
     todo, skipped = _candidate_items(b.ir, b.lighting, b.effects, candidates)
     consistent = consistent_with_noise(b.fit, **b.ctest)
@@ -958,7 +968,8 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
         progress(1, 1, "")
 
     d = Diagnosis(Verdict("none"), b.fit, suspects, skipped, b.noise, structure_before=structure_before,
-                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held], pairs=pairs)
+                  refitted=[fp.target for fp in joint], held=[fp.target for fp in held],
+                  held_for_cost=[fp.target for fp in costly], pairs=pairs)
     d.consistent = consistent
     d.where = _where(meas, b.fit)
     d.verdict = _decide(consistent, [_scored(x) for x in suspects if not x.not_eligible],

@@ -100,6 +100,9 @@ def print_text(res, console) -> None:
     if d.held:
         console.print("held at the booth's values (these data cannot pin them): " + ", ".join(d.held),
                       style="dim")
+    if d.held_for_cost:
+        console.print("held at the booth's values (too dear to refit with every candidate): "
+                      + ", ".join(d.held_for_cost), style="dim")
     if res.outliers:
         t = table(title="outlying readings (far from the model and from their neighbours)", title_justify="left")
         for c in ("file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"):

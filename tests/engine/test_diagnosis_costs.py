@@ -41,12 +41,19 @@ def test_pairs_counted_are_the_models(ir, lighting):
 
 def test_dear_plate_fraction_held_cheap_one_refitted(ir):
     effects = D._coarsen(dict(ir.effects))
-    held = [fp.target for fp in D._enabled_fit_params(ir, "D65", effects, [])]
-    refit = [fp.target for fp in D._enabled_fit_params(ir, "A", effects, [])]
-    assert "effect.diffuser.diffuse_fraction" not in held
-    assert "effect.diffuser.diffuse_fraction" in refit
+    dear: list = []
+    d65 = [fp.target for fp in D._enabled_fit_params(ir, "D65", effects, [], dear)]
+    cheap: list = []
+    a = [fp.target for fp in D._enabled_fit_params(ir, "A", effects, [], cheap)]
+    assert "effect.diffuser.diffuse_fraction" not in d65
+    assert "effect.diffuser.diffuse_fraction" in [fp.target for fp in dear]       # said, not dropped
+    assert "effect.diffuser.diffuse_fraction" in a
+    assert "effect.diffuser.diffuse_fraction" not in [fp.target for fp in cheap]
+    # the inter-reflection's cost is the same in every lighting: held in both or in neither
+    assert ("effect.interreflection.reflectance_scale" in [fp.target for fp in dear]) == \
+        ("effect.interreflection.reflectance_scale" in [fp.target for fp in cheap])
     # the other effects' parameters are unaffected by the plate's cost
-    assert "effect.aperture_occlusion.opening_scale" in held
+    assert "effect.aperture_occlusion.opening_scale" in d65
 
 
 def test_no_plate_costs_nothing(ir):
