@@ -393,6 +393,13 @@ class Diagnosis:
                 "joint_parameters_held": self.held,
                 "joint_parameters_held_for_cost": self.held_for_cost}
 
+    def held_lines(self) -> list[tuple[str, str]]:
+        """What was held at the booth's values, one ``(prefix, names)`` per reason that holds any
+        (the text output and the report print them)."""
+        reasons = (("these data cannot pin them", self.held),
+                   ("too dear to refit with every candidate", self.held_for_cost))
+        return [(f"held at the booth's values ({why}): ", ", ".join(names)) for why, names in reasons if names]
+
 
 # --------------------------------------------------------------------------- snippets
 
@@ -666,7 +673,7 @@ class _Base:
         return self.meas.lighting
 
 
-def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list, list]:
+def _fit_base(meas, base_problem: FitProblem, cache: dict) -> tuple[_Base, list, list, list]:
     """Fit the booth as declared (with the joint parameters the data pin down): the
     :class:`_Base`, the refitted joint parameters, the held ones and those held for their cost."""
     ir, lighting = meas.ir, meas.lighting

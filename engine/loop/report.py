@@ -201,12 +201,8 @@ def _render_report(res) -> str:
         if d.skipped:
             parts.append("<p class=meta>not tested: " + e("; ".join(f"{k} ({v})" for k, v in d.skipped.items()))
                          + "</p>")
-        if d.held:
-            parts.append("<p class=meta>held at the booth's values (these data cannot pin them): "
-                         + e(", ".join(d.held)) + "</p>")
-        if d.held_for_cost:
-            parts.append("<p class=meta>held at the booth's values (too dear to refit with every candidate): "
-                         + e(", ".join(d.held_for_cost)) + "</p>")
+        for prefix, names in d.held_lines():
+            parts.append("<p class=meta>" + prefix + e(names) + "</p>")
     if res.plan is not None and res.plan.points:
         names = res.plan.candidates
         parts.append("<h2>Measure next</h2><p>Readings where the candidates disagree most "

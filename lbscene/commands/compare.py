@@ -97,12 +97,8 @@ def print_text(res, console) -> None:
                 console.print(f"not eligible: {s.not_eligible}", style="dim")
     if d.skipped:
         console.print("not tested: " + "; ".join(f"{k} ({v})" for k, v in d.skipped.items()), style="dim")
-    if d.held:
-        console.print("held at the booth's values (these data cannot pin them): " + ", ".join(d.held),
-                      style="dim")
-    if d.held_for_cost:
-        console.print("held at the booth's values (too dear to refit with every candidate): "
-                      + ", ".join(d.held_for_cost), style="dim")
+    for prefix, names in d.held_lines():
+        console.print(prefix + names, style="dim")
     if res.outliers:
         t = table(title="outlying readings (far from the model and from their neighbours)", title_justify="left")
         for c in ("file:line", "x mm", "y mm", "z mm", "measured lx", "model lx", "off by %"):
