@@ -80,6 +80,7 @@ __all__ = [
     "specular_plate",
     "plate_top_mm",
     "slab_relative",
+    "slab_crossing",
     "fresnel_relative",
     "FresnelWeight",
     "opal_optical_depth",
@@ -166,6 +167,67 @@ def slab_relative(ir, cos_i, fd: float | None = None) -> np.ndarray:
     if ir.diffuser.scattering.get("type") == "lambertian":
         return opal_regular_relative(cos_i, ir.diffuser.ior, opal_depth(ir, fd))
     return fresnel_relative(cos_i, ir.diffuser.ior)
+
+
+#: Newton steps of :func:`slab_crossing` (monotone from below: 1e-12 relative after 5 for any
+#: plate thinner than the path)
+_CROSSING_STEPS = 6
+
+
+def slab_crossing(src_mm, rx_mm, z_mid_mm: float, thickness_mm: float, ior: float):
+    """How a plate of finite thickness bends the straight path from a source point to a
+    receiver: ``(cos_theta, spread)``, each of shape ``(len(rx), len(src))``.
+
+    A ray crosses the slab (faces at :math:`z_\\text{mid} ± t/2`, index :math:`n`) refracted
+    toward the normal and leaves it parallel to its entry, so the path from a source a height
+    :math:`h_s` above its near face to a receiver :math:`h_r` beyond its far face, a horizontal
+    distance :math:`ρ` apart, has :math:`u = \\tan θ` with
+
+    .. math:: ρ(u) = (h_s + h_r)\\,u + \\frac{t\\,u}{\\sqrt{n^2 + (n^2 - 1)u^2}},
+
+    (solved by Newton from :math:`u_0 = ρ/(h_s + h_r + t/n)`, below the root of this concave
+    function).  The receiver sees the source through a ray tube that spreads less inside the
+    plate: per unit area across the ray it receives
+
+    .. math:: \\frac{dΩ}{dA_⊥} = \\frac{u}{(1 + u^2)\\,ρ\\,ρ'(u)}
+
+    of the source's intensity instead of the straight line's :math:`1/r^2 = 1/(D^2(1 + u'^2))`,
+    :math:`D = h_s + h_r + t`, :math:`u' = ρ/D`.  ``spread`` is their ratio (near the normal
+    :math:`(D/(h_s + h_r + t/n))^2`: a 3 mm PMMA plate between a tube 50 mm above it and a floor
+    600 mm below brightens the floor by 0.3 %, the apparent source being 1 mm closer); ``cos_theta``
+    is :math:`\\cos θ` of the refracted path's outer legs (the incidence on the plate).  Pairs not
+    on opposite sides of the plate (or inside it) get the straight line's values and spread 1.
+    The source's intensity and the receiver's cosine are left at the straight line's direction
+    (it differs from the path's by about :math:`t(1 - 1/n)/D` relative in :math:`\\tan θ`)."""
+    S = np.asarray(src_mm, float)
+    P = np.asarray(rx_mm, float)
+    d = P[:, None, :] - S[None, :, :]
+    rho = np.hypot(d[..., 0], d[..., 1])
+    r = np.sqrt(rho * rho + d[..., 2] ** 2)
+    cos_line = np.abs(d[..., 2]) / np.maximum(r, 1e-12)
+    zs = S[None, :, 2] - z_mid_mm
+    zr = P[:, None, 2] - z_mid_mm
+    half = 0.5 * float(thickness_mm)
+    crosses = (zs * zr < 0) & (np.abs(zs) > half) & (np.abs(zr) > half)
+    n = float(ior)
+    if half <= 0 or n <= 1.0 or not np.any(crosses):
+        return cos_line, np.ones_like(cos_line)
+    t = 2.0 * half
+    h = np.where(crosses, np.abs(zs) + np.abs(zr) - t, 1.0)
+    k = n * n - 1.0
+    u = rho / (h + t / n)
+    for _ in range(_CROSSING_STEPS):
+        q = n * n + k * u * u
+        f = h * u + t * u / np.sqrt(q) - rho
+        u = u - f / (h + t * n * n / q ** 1.5)
+    q = n * n + k * u * u
+    drho = h + t * n * n / q ** 1.5
+    # u/ρ at ρ → 0 is 1/ρ'(0) = 1/(h + t/n)
+    u_over_rho = np.where(rho > 1e-9, u / np.maximum(rho, 1e-300), 1.0 / (h + t / n))
+    D = h + t
+    spread = u_over_rho / ((1.0 + u * u) * drho) * (D * D + rho * rho)
+    cos_path = 1.0 / np.sqrt(1.0 + u * u)
+    return np.where(crosses, cos_path, cos_line), np.where(crosses, spread, 1.0)
 
 
 def fresnel_relative(cos_i, ior: float) -> np.ndarray:

@@ -1316,7 +1316,9 @@ class RadiosityTransport:
         tau = plate_diffuse_transfer(ir) * float(T)
         if tau <= 0:
             return 0.0
-        layer = opal_plate_layer(ir, float(ir.diffuser.scattering["diffuse_fraction"]))
+        # the declared plate's layer: the inter-reflection reads the plate as declared (the diffuser
+        # effect's diffuse_fraction override moves the lamps' light through the plate only)
+        layer = opal_plate_layer(ir)
         c = self.patches.centres
         F = self._F_crossed(T)
         out = 0.0

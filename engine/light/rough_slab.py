@@ -104,8 +104,12 @@ BIN_THETA_DEG = 2.0
 #: width of the azimuth bins of the tabulated BTDF (degrees, over 0..180)
 BIN_PHI_DEG = 10.0
 #: photons per incidence node (the expected-value estimator leaves only the microfacet sampling's
-#: variance: T's standard error is below 0.05 % for roughness ≤ 0.3)
-PHOTONS = 16_000
+#: variance: T's standard error is below 0.05 % for roughness ≤ 0.3).  The BTDF's bins hold a few
+#: hundredths of them each: a plate cell's exit radiance sums the table over many incoming
+#: directions, and the table's noise did not average out at 16 000 (α 0.3 under a uniform sky:
+#: the radiance leaving at θ_o was 2 % off T(θ_o) at some angles, the reciprocal value; ±0.4 %
+#: at 128 000; tested in tests/engine/test_rough_slab.py)
+PHOTONS = 128_000
 #: interface events a photon may have inside the slab before what it carries is counted as lost
 #: (trapped light; the tally records how much)
 MAX_EVENTS = 400
@@ -116,10 +120,10 @@ _FORMAT = "rough-slab-2"
 #: plates whose tables travel with lbscene (``(roughness, ior)``; α = roughness²): the shipped
 #: booths' glass plate, common PMMA / glass diffusers and the roughness grid of the diagnosis'
 #: rough-plate hypothesis (``diffuser_plate``, ior 1.5), so that the first evaluation of a booth
-#: with one of them does not pay the Monte Carlo (≈ 2–4 s).  Made by
+#: with one of them does not pay the Monte Carlo (≈ 15–30 s; roughness 0.5477 is GGX α 0.3).  Made by
 #: ``scripts/gen_rough_slab_tables.py``; a test checks they are current.
 SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
-                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49),
+                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49), (0.5477, 1.49),
                   (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"

@@ -50,10 +50,11 @@ def test_a_nearly_smooth_plate_transmits_like_the_clear_slab(ir):
     for k, p in enumerate(P):
         ends = np.array([[-300.0, y, 650.0] for y in (-120, 120)] + [[300.0, y, 650.0] for y in (-120, 120)]
                         + [[0.0, y, 650.0] for y in (-120, 120)] + [[p[0], y, 650.0] for y in (-120, 120)])
-        u = ends - p
-        c = u[:, 2] / np.linalg.norm(u, axis=1)
-        R = _fresnel_unpolarised(c, n)
-        f = float(ir.diffuser.transmittance.array_1nm[0]) * (1 - R) / (1 + R) / T0
+        # the path refracted through the 3 mm plate: its incidence and ray-tube spread (checked
+        # against a ray trace below)
+        c, spread = plates.slab_crossing(ends, p[None, :], 600.0, 3.0, n)
+        R = _fresnel_unpolarised(c[0], n)
+        f = float(ir.diffuser.transmittance.array_1nm[0]) * (1 - R) / (1 + R) / T0 * spread[0]
         assert f.min() - 2e-3 <= on[k] / off[k] <= f.max() + 2e-3, (k, on[k] / off[k], f)
 
 
@@ -249,9 +250,10 @@ def test_the_light_a_plate_cell_close_under_a_tube_receives_is_integrated_finely
     # an infinitely long Lambertian cylinder sends a parallel strip the share (φ_b − φ_a)/2π of its
     # flux, φ the strip's edges seen from the axis (the crossed-strings result): per unit peak
     # intensity I = L·2r·ℓ, a strip of length X receives π·Δφ·X/(2ℓ).  The tube's axis is 27 mm
-    # above the plate (its surface 14 mm); the cells are 25 mm, the strip 100 mm long, the tube
-    # 1200 mm (its ends, 550 mm away, add < 0.1 %)
-    h, X, ell = 27.0, 100.0, 1200.0
+    # above the plate's mid-plane, 25.5 mm above its top face where the light is taken (its
+    # surface 12.5 mm); the cells are 25 mm, the strip 100 mm long, the tube 1200 mm (its ends,
+    # 550 mm away, add < 0.1 %)
+    h, X, ell = 25.5, 100.0, 1200.0
 
     def closed_form(a, b):
         return np.pi * (np.arctan(b / h) - np.arctan(a / h)) * X / (2 * ell)
@@ -305,3 +307,65 @@ def test_a_glass_plate_reflects_a_lamp_above_it_as_its_mirror_image(tmp_path, x_
     diffuse = ForwardModel(_bulb_over_plate(tmp_path / "diffuse", True, "diffuse"), "L").illuminance_lx(
         P, N, meter=False)[0]
     assert abs(diffuse / bare - 1 - image_share) > 0.1 * image_share
+
+
+def _refract(d, n, eta):
+    """Vector Snell: direction ``d`` through a face of normal ``n`` (against ``d``), index ratio ``eta``."""
+    c = -np.sum(d * n, axis=-1, keepdims=True)
+    k = 1 - eta ** 2 * (1 - c ** 2)
+    return eta * d + (eta * c - np.sqrt(k)) * n
+
+
+def _landing_radius(theta, h_src, t, h_rx, n):
+    """Trace a ray leaving a point source at polar angle ``theta`` (downward) through a slab of
+    thickness ``t`` ``h_src`` below it and return where it meets the plane ``h_rx`` below the slab."""
+    d = np.stack([np.sin(theta), np.zeros_like(theta), -np.cos(theta)], -1)
+    up = np.array([0.0, 0.0, 1.0])
+    x = d[:, 0] / -d[:, 2] * h_src                       # to the top face
+    d1 = _refract(d, up, 1.0 / n)
+    x = x + d1[:, 0] / -d1[:, 2] * t                    # through the slab
+    d2 = _refract(d1, up, n)
+    return x + d2[:, 0] / -d2[:, 2] * h_rx
+
+
+@pytest.mark.parametrize("rho_mm", [0.0, 150.0, 400.0, 900.0])
+def test_a_thick_plate_brings_the_lamps_behind_it_closer_as_a_ray_trace_does(rho_mm):
+    # A point source 48.5 mm above a 3 mm plate (n 1.49), a receiver plane 598.5 mm below it: the
+    # flux through a thin ring of the receiver plane is the source's intensity times the solid angle
+    # of the directions that land in it, found by tracing rays with the vector form of Snell's law
+    # (independent of slab_crossing's closed form for the landing radius).  Against the straight
+    # line's inverse-square law the ring is brighter by the spread slab_crossing returns.
+    n, t, hs, hr = 1.49, 3.0, 48.5, 598.5
+    from scipy.optimize import brentq
+
+    def theta_at(r):
+        return 0.0 if r == 0 else brentq(lambda a: _landing_radius(np.array([a]), hs, t, hr, n)[0] - r,
+                                          0.0, 1.5, xtol=1e-15)
+    dr = 0.05
+    r1, r2 = max(rho_mm - dr, 0.0), rho_mm + dr
+    solid = 2 * np.pi * (np.cos(theta_at(r1)) - np.cos(theta_at(r2)))
+    E_traced = solid / (np.pi * (r2 ** 2 - r1 ** 2))          # per unit intensity, on the plane
+    D = hs + t + hr
+    rr = np.linspace(r1, r2, 201)
+    E_line = np.trapz(D / (D ** 2 + rr ** 2) ** 1.5 * rr, rr) / np.trapz(rr, rr)   # I cos θ / r², mean
+    cos_path, spread = plates.slab_crossing(np.array([[0.0, 0.0, 650.0]]), np.array([[rho_mm, 0.0, 0.0]]),
+                                             600.0, t, n)
+    # the receiver plane's cosine at the traced path against the straight line's: the same to
+    # about t(1 - 1/n)/D (slab_crossing's docstring), so compare on the plane with it folded in
+    c_line = D / np.hypot(D, rho_mm)
+    expect = float(spread[0, 0]) * float(cos_path[0, 0]) / c_line
+    assert E_traced / E_line == pytest.approx(expect, rel=2e-4), (E_traced / E_line, expect)
+    # near the normal: the source 1 mm (t(1 - 1/n)) closer
+    if rho_mm == 0.0:
+        assert float(spread[0, 0]) == pytest.approx((D / (D - t * (1 - 1 / n))) ** 2, rel=1e-9)
+
+
+def test_a_thick_plate_does_not_bend_paths_that_do_not_cross_it():
+    src = np.array([[0.0, 0.0, 650.0], [0.0, 0.0, 601.0]])       # above; inside the plate
+    rx = np.array([[100.0, 0.0, 700.0], [100.0, 50.0, 0.0]])     # above; below
+    cos_i, spread = plates.slab_crossing(src, rx, 600.0, 3.0, 1.49)
+    assert spread[0, 0] == 1.0 and spread[0, 1] == 1.0 and spread[1, 1] == 1.0
+    assert spread[1, 0] > 1.0
+    # a plate without refraction (index 1) or thickness bends nothing
+    assert np.all(plates.slab_crossing(src, rx, 600.0, 3.0, 1.0)[1] == 1.0)
+    assert np.all(plates.slab_crossing(src, rx, 600.0, 0.0, 1.49)[1] == 1.0)

@@ -282,3 +282,22 @@ def test_every_shipped_table_equals_a_fresh_computation(tmp_path, roughness, ior
     fresh = rs.write_shipped_table(roughness, ior, tmp_path)
     with np.load(fresh) as a, np.load(rs.shipped_table_path(roughness, ior)) as b:
         assert np.allclose(a["table"], b["table"], rtol=1e-9, atol=1e-12)
+
+
+def test_a_plate_under_a_uniform_sky_sends_its_reciprocal_transmittance_every_way():
+    # Helmholtz reciprocity: under a sky of radiance 1 the radiance a plate sends toward θ_o is
+    # ∫ f_T(ω_i, ω_o) cos θ_i dω_i = T(θ_o), the transmittance of a beam arriving from θ_o.  The
+    # rough cells' exit radiance (exit_radiance_grid, read by exit_radiance_at) sums the table over
+    # incoming directions, the way this test does: the BTDF's noise per bin must average out (at
+    # 16 000 photons a node it was 1-2 % off at 11°, 21° and 61°, and a booth under a wide-lobed
+    # plate came out 0.5-0.8 % bright against Mitsuba 3)
+    s = rs.rough_slab(0.3, IOR)                          # GGX α 0.3 (roughness 0.5477, shipped)
+    th = np.deg2rad((np.arange(900) + 0.5) * 0.1)
+    ph = np.deg2rad((np.arange(720) + 0.5) * 0.5) - np.pi
+    TH, PH = np.meshgrid(th, ph, indexing="ij")
+    w = np.cos(TH) * np.sin(TH) * np.deg2rad(0.1) * np.deg2rad(0.5)      # cos θ_i dω_i, radiance 1
+    grid = s.exit_radiance_grid(np.cos(TH).reshape(1, -1), PH.reshape(1, -1), w.reshape(1, -1))
+    theta_o = np.array([11.0, 21.0, 31.0, 41.0, 51.0, 61.0, 71.0])       # exit bins' centres
+    L = rs.RoughSlab.exit_radiance_at(grid, np.cos(np.deg2rad(theta_o))[None, :], np.zeros((1, 7)))[0]
+    T = s.transmittance(np.cos(np.deg2rad(theta_o)))
+    assert np.abs(L / T - 1).max() < 0.01, dict(zip(theta_o, np.round(L / T - 1, 4)))

@@ -32,7 +32,8 @@ from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import (absorption_squared, diffuser_fraction, diffuser_rect,
                                          diffuser_transmittance_1nm, is_rough,
                                          plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
-                                         reference_transmittance, slab_relative, specular_plate)
+                                         reference_transmittance, slab_crossing, slab_relative,
+                                         specular_plate)
 from lbscene.engine.light.rough_slab import EXIT_PHI_STEPS, RoughSlab
 
 __all__ = ["DiffuserEffect"]
@@ -122,7 +123,8 @@ class DiffuserEffect(PhysicalEffect):
         out["cell_size_mm"] = max(float(out.get("cell_size_mm", 50.0)), cls.diagnosis_cell_mm)
         out["cell_subpoints"] = 2
         modes = out.get("opal_modes")
-        out["opal_modes"] = min(cls.diagnosis_opal_modes, cls.diagnosis_opal_modes if modes is None else int(modes))
+        cut = cls.diagnosis_opal_modes
+        out["opal_modes"] = cut if modes is None else min(int(modes), cut)
         return out
 
     #: seconds per (plate sub-point × lamp emitter point) pair of an opal plate's light (gathered
@@ -211,15 +213,19 @@ class DiffuserEffect(PhysicalEffect):
 
         fd = diffuser_fraction(ir, p)
 
-        def angular():
-            d = rx[:, None, :] - es.points_mm[None, :, :]
-            cos_i = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-            return slab_relative(ir, cos_i, fd)
+        d = ir.diffuser
 
-        rough = float(ir.diffuser.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
+        def angular():
+            # the path refracted through the plate's thickness: its incidence and the spread of
+            # its ray tube (slab_crossing) times the plate's law at that incidence
+            cos_i, spread = slab_crossing(es.points_mm, rx, d.z_mm, d.thickness_mm, d.ior)
+            return spread * slab_relative(ir, cos_i, fd)
+
+        rough = float(d.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
         # an opal plate's regular part depends on its optical depth, i.e. on the diffuse fraction
-        opal = fd if ir.diffuser.scattering.get("type") == "lambertian" else -1.0
-        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [ir.diffuser.ior, rough, opal]), angular)
+        opal = fd if d.scattering.get("type") == "lambertian" else -1.0
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [d.ior, rough, opal, d.z_mm, d.thickness_mm]),
+                       angular)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", diffuser_transmittance_1nm(ctx, p)),
                 PathChannel(1.0 - hit, None, None)]
@@ -258,11 +264,11 @@ class DiffuserEffect(PhysicalEffect):
         return np.clip(k, ROUGH_SUB_MIN, ROUGH_SUB_MAX).astype(int)
 
     @classmethod
-    def _incoming(cls, ctx, p, direct, cell_size_mm: float, face: int = 0):
-        """The light arriving on the top of the plate's cells (``cell_size_mm``, at ``face``:
+    def _incoming(cls, ctx, p, direct, cell_size_mm: float, subpoints: int | None = None):
+        """The light arriving on the plate's cells (``cell_size_mm``, on its top face:
         :meth:`_cells`), per emitter point, in
         chunks of cells: yields ``(idx, light)`` for cells ``idx`` (sampled at ``k × k``
-        sub-points, :meth:`_cell_subpoints`), ``light`` mapping each term's key to
+        sub-points: ``subpoints``, or by distance, :meth:`_cell_subpoints`), ``light`` mapping each term's key to
         ``(term, E, cos_i, phi)``: ``E`` (n, k·k·N) the irradiance of each emitter point at each
         sub-point times its area weight (their sum over a cell is the cell's mean irradiance),
         ``cos_i`` its incidence cosine and ``phi`` the azimuth of its propagation (away from the
@@ -270,9 +276,9 @@ class DiffuserEffect(PhysicalEffect):
         (sub-point × emitter point) arrays of a large plate do not all exist at once."""
         from lbscene.engine.light.geometry import quad_subpoints
 
-        polys = cls._cells(ctx.ir.diffuser, cell_size_mm, face)
-        if p.cell_subpoints is not None and face != 0:
-            ks = np.full(len(polys), int(p.cell_subpoints))
+        polys = cls._cells(ctx.ir.diffuser, cell_size_mm, +1)
+        if subpoints is not None:
+            ks = np.full(len(polys), int(subpoints))
         else:
             ks = cls._cell_subpoints(ctx, polys, cell_size_mm)
         for k in np.unique(ks):
@@ -313,12 +319,13 @@ class DiffuserEffect(PhysicalEffect):
         quadrature): a fit varying only the plate's or a meter's parameters, and the
         inter-reflection's model of the same lamps, read it back."""
         ir = ctx.ir
-        key = (ir.content_hash, *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale")}),
-               float(p.scattered_cell_size_mm))
+        key = (ir.content_hash,
+               *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale", "opal_modes")}))
         store = ctx.cache.setdefault("_rough_exit", {})
         if key in store:
             return store[key]
-        polys = cls._cells(ir.diffuser, p.scattered_cell_size_mm)
+        # light arrives on the top face (_incoming) and leaves from the bottom one
+        polys = cls._cells(ir.diffuser, p.scattered_cell_size_mm, -1)
         slab = plate_slab(ir)
         terms: dict = {}
         grids: dict = {}
@@ -347,8 +354,8 @@ class DiffuserEffect(PhysicalEffect):
 
         the slab's non-absorbing BTDF :math:`f_T` (:mod:`~lbscene.engine.light.rough_slab`) over the
         irradiance :math:`E_{se}` of each emitter point ``e`` at each sub-point ``s`` (area
-        weight :math:`w_s`) of the cell, :math:`ω_i` its direction (the cells in the plate's
-        mid-plane: the slab shifts a nearly straight path sideways by less than its thickness).  A cell close
+        weight :math:`w_s`) of the cell's top face, :math:`ω_i` its direction, leaving from the bottom face
+        (the slab shifts a path sideways by less than its thickness).  A cell close
         to a lamp gets more sub-points (:meth:`_cell_subpoints`): under a tube 14 mm above the
         plate, 2 × 2 points on 25 mm cells put the light 2–5 % off between and beyond the tubes
         against Mitsuba 3 (validation scene ``aperture-diffuser``), 6 × 6 within 1 %."""
@@ -398,8 +405,9 @@ class DiffuserEffect(PhysicalEffect):
         from lbscene.engine.light.opal_layer import MAX_MODES
 
         ir = ctx.ir
-        key = (ir.content_hash, *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale")}),
-               float(p.cell_size_mm), p.cell_subpoints, "opal")
+        # (the diffuser's own cell_size_mm and cell_subpoints are in lamp_light_key)
+        key = (ir.content_hash,
+               *ctx.lamp_light_key({cls.id: ("diffuse_fraction", "transmittance_scale", "opal_modes")}), "opal")
         store = ctx.cache.setdefault("_opal_light", {})
         if key in store:
             return store[key]
@@ -408,7 +416,7 @@ class DiffuserEffect(PhysicalEffect):
         terms: dict = {}
         coef: dict = {}
         with ctx.transient():
-            for idx, light in cls._incoming(ctx, p, direct, p.cell_size_mm, +1):
+            for idx, light in cls._incoming(ctx, p, direct, p.cell_size_mm, p.cell_subpoints):
                 for tk, (t, E, cos_i, phi) in light.items():
                     if tk not in terms:
                         terms[tk] = t
