@@ -481,6 +481,11 @@ def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[Tran
                      f"in the bake (the model has them); the plate reflects as a clear plate's faces do")
     from lbscene.engine.light.plates import reference_transmittance
 
+    if d.ior is not None and d.ior > 1.0 and d.thickness_mm > 0:
+        notes.append(f"diffuser: a sheet of no thickness; the {d.thickness_mm:g} mm plate's refraction (the "
+                     f"model's paths through it, lamps behind it "
+                     f"{d.thickness_mm * (1 - 1 / d.ior):.2g} mm closer near its normal) is not in the bake, "
+                     f"and the cross-check compares it with the model's plate of no thickness")
     return [TransmissiveSheet(id="diffuser", role="diffuser", vertices_mm=v, triangles=t,
                               transmittance=tuple(float(x) for x in T), ior=d.ior,
                               roughness=float(sc.get("roughness", 0.0)),

@@ -653,7 +653,10 @@ class MitsubaTruth:
             v = np.cross(n, u)
             # a hair to the side the normal points to, as the Cycles bake draws it
             c = np.asarray(o.centre_mm, float) + OCCLUDER_OFFSET_MM * n
-            refl = ir.materials[o.material].reflectance.array_1nm if o.material else np.zeros(471)
+            # black without inter-reflection, as the booth's surfaces (the model's direct light has
+            # no light reflected by an occluder)
+            refl = ir.materials[o.material].reflectance.array_1nm \
+                if o.material and "interreflection" in self.effects else np.zeros(471)
             hole = (o.opening_mm[0] / 2, o.opening_mm[1] / 2) \
                 if o.type == "aperture_plate" and o.opening_mm is not None else None
             for k, (u0, u1, v0, v1) in enumerate(plate_pieces((o.size_mm[0] / 2, o.size_mm[1] / 2), hole)):

@@ -369,3 +369,24 @@ def test_a_thick_plate_does_not_bend_paths_that_do_not_cross_it():
     # a plate without refraction (index 1) or thickness bends nothing
     assert np.all(plates.slab_crossing(src, rx, 600.0, 3.0, 1.0)[1] == 1.0)
     assert np.all(plates.slab_crossing(src, rx, 600.0, 0.0, 1.49)[1] == 1.0)
+
+
+def test_without_thickness_refraction_the_plate_is_a_sheet_of_no_thickness(ir):
+    # the bake draws a clear or rough plate as a thin sheet; its cross-check compares it with the
+    # model's plate with thickness_refraction off: the same plate made (nearly) infinitely thin
+    P = np.array([[0.0, 0.0, 0.0], [380.0, 250.0, 0.0]])
+    off = ForwardModel(ir, "L", effects={"diffuser": {"thickness_refraction": False}}).illuminance_lx(P)
+    thin = ir.model_copy(update={"diffuser": ir.diffuser.model_copy(update={"thickness_mm": 1e-6})})
+    assert np.allclose(off, ForwardModel(thin, "L").illuminance_lx(P), rtol=1e-6)
+    on = ForwardModel(ir, "L").illuminance_lx(P)
+    # the 3 mm plate 50 mm under the tubes, the floor 600 mm below: about 0.3 % more light
+    assert np.all(on / off - 1 > 0.002) and np.all(on / off - 1 < 0.004), on / off - 1
+
+
+def test_the_bake_says_its_sheet_leaves_out_the_plates_thickness(ir):
+    from lbscene.bakers.from_ir import lighting_job
+
+    notes = lighting_job(ir, "L").source["notes"]
+    # 3 mm × (1 − 1/1.49): the lamps 0.99 mm closer near the plate's normal
+    assert "diffuser: a sheet of no thickness; the 3 mm plate's refraction" in notes
+    assert "lamps behind it 0.99 mm closer" in notes

@@ -387,3 +387,36 @@ def test_volpath_shadow_rays_from_an_opal_layer_reach_a_lamp_far_from_the_origin
     float offsets at 600 mm (+4 %)."""
     got, se, expected = _layer_under_a_small_panel(tmp_path, monkeypatch, 3.0, shifted=False)
     assert abs(got - expected) <= 4 * se + 0.05 * expected, (got, expected, se)
+
+
+def test_without_inter_reflection_an_occluder_absorbs_as_the_surfaces_do(tmp_path):
+    # the model's direct light has no light reflected by an occluder: a white panel beside a point
+    # lamp leaves the floor its inverse-square light (it reflected 30 % more onto these points while
+    # occluders kept their material's reflectance with the inter-reflection off)
+    d = tmp_path / "booth"
+    d.mkdir()
+    (d / "booth.yaml").write_text(textwrap.dedent("""\
+        version: 1
+        kind: booth
+        name: occluder test
+        provenance: {status: synthetic, source: "closed-form tests"}
+        interior: {type: box, width_mm: 3000, depth_mm: 3000, height_mm: 3000}
+        materials:
+          black: {type: diffuse, reflectance: {type: constant, value: 0.0}}
+          white: {type: diffuse, reflectance: {type: constant, value: 0.9}}
+        surfaces: {floor: black, left_wall: black, right_wall: black, rear_wall: black, ceiling: black}
+        occluders:
+          - {id: panel, type: panel, centre_mm: [300, 0, 500], normal: [-1, 0, 0], u_axis: [0, 1, 0],
+             size_mm: [1000, 1000], material: white}
+        lamps:
+          - {id: lamp, type: point, position_mm: [0, 0, 1000], spd: {type: constant, value: 1},
+             output: {type: peak_intensity_cd, value_cd: 1000}}
+        lighting:
+          L: {lamps: [lamp]}
+        observer: {type: eye_point, position_mm: [0, -1400, 1500]}
+        """))
+    ir = compile_booth(d)
+    P = np.array([[100.0, 0.0, 0.0], [200.0, 100.0, 0.0]])
+    res = MitsubaTruth(ir, "L", effects={"aperture_occlusion": {}}, spp=4096, passes=4).illuminance_with_error_lx(P)
+    r = np.linalg.norm(P - [0.0, 0.0, 1000.0], axis=1)
+    _check(res, I_CD * (1000.0 / r) / (r * 1e-3) ** 2)

@@ -98,6 +98,10 @@ class DiffuserEffect(PhysicalEffect):
                                        description="Azimuthal modes of an opal plate's law kept for the "
                                                    "lamps' light through it (default: every mode the "
                                                    "layer's asymmetry needs, at most 48).")
+        thickness_refraction: bool = Field(True, description="Paths through the plate are refracted through "
+                                                             "its thickness_mm, so what lies behind it looks "
+                                                             "closer; false: a plate of no thickness (as the "
+                                                             "bake's thin sheet draws a clear or rough plate).")
         scattered_cell_size_mm: float = Field(25.0, gt=1, le=1000,
                                               description="Cell size of a roughness plate whose light "
                                                           "re-emits through the slab's BTDF.")
@@ -215,16 +219,18 @@ class DiffuserEffect(PhysicalEffect):
 
         d = ir.diffuser
 
+        thick = d.thickness_mm if p.thickness_refraction else 0.0
+
         def angular():
             # the path refracted through the plate's thickness: its incidence and the spread of
             # its ray tube (slab_crossing) times the plate's law at that incidence
-            cos_i, spread = slab_crossing(es.points_mm, rx, d.z_mm, d.thickness_mm, d.ior)
+            cos_i, spread = slab_crossing(es.points_mm, rx, d.z_mm, thick, d.ior)
             return spread * slab_relative(ir, cos_i, fd)
 
         rough = float(d.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
         # an opal plate's regular part depends on its optical depth, i.e. on the diffuse fraction
         opal = fd if d.scattering.get("type") == "lambertian" else -1.0
-        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [d.ior, rough, opal, d.z_mm, d.thickness_mm]),
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [d.ior, rough, opal, d.z_mm, thick]),
                        angular)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", diffuser_transmittance_1nm(ctx, p)),
