@@ -123,8 +123,9 @@ _FORMAT = "rough-slab-2"
 #: with one of them does not pay the Monte Carlo (≈ 15–30 s; roughness 0.5477 is GGX α 0.3).  Made by
 #: ``scripts/gen_rough_slab_tables.py``; a test checks they are current.
 SHIPPED_PLATES = ((0.04, 1.52), (0.1, 1.52), (0.2, 1.52),
-                  (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49), (0.5477, 1.49),
-                  (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
+                  (0.01, 1.49), (0.04, 1.49), (0.05, 1.49), (0.1, 1.49), (0.2, 1.49), (0.3, 1.49), (0.5, 1.49),
+                  (0.5477, 1.49), (0.7, 1.49),
+                  (0.04, 1.5), (0.05, 1.5), (0.1, 1.5), (0.2, 1.5), (0.35, 1.5), (0.5, 1.5))
 #: where the shipped tables live (package data)
 SHIPPED_TABLES_DIR = Path(__file__).resolve().parent / "data" / "rough_slab"
 #: azimuths of :meth:`RoughSlab.exit_radiance_grid` (a 5° step; the table's bins are 10°)
