@@ -214,7 +214,7 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
 
     from lbscene.engine.light.forward import ForwardModel
 
-    from .from_ir import grid_points
+    from .from_ir import diffuser_is_thin_sheet, grid_points
     from .products import band_photopic_weights
 
     eff = dict(ir.effects if effects is None else effects)
@@ -231,9 +231,9 @@ def cross_check(ir, lighting: str, *, mode: str = "direct", points=None, normals
             max_bounces = bound + 1 if bound > 0 else CONVERGED_BOUNCES
     else:
         raise ValueError(f"unknown cross-check mode {mode!r}")
-    if "diffuser" in eff and ir.diffuser is not None and ir.diffuser.scattering.get("type") != "lambertian":
-        # the bake draws a clear or rough plate as a thin sheet: the model's plate of no thickness
-        # is what it is compared with (the bake's notes say so)
+    if diffuser_is_thin_sheet(ir, eff):
+        # the bake draws the plate as a sheet of no thickness: the model's plate of no thickness is
+        # what it is compared with (the bake's notes say so)
         eff["diffuser"] = {**dict(eff["diffuser"] or {}), "thickness_refraction": False}
     P = grid_points(ir) if points is None else np.atleast_2d(np.asarray(points, float))
     N = np.tile([0.0, 0.0, 1.0], (len(P), 1)) if normals is None else \

@@ -61,7 +61,7 @@ from .job import (AreaEmitter, AxialWeight, BakeJob, BandGridSpec, CosinePowerPr
                   PointEmitters, Quality, RigidTransform, TransmissiveSheet, Window, save_job)
 from lbscene.engine.light.geometry import OCCLUDER_OFFSET_MM, plate_pieces
 
-__all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build",
+__all__ = ["lighting_job", "grid_points", "write_build_products", "job_path_in_build", "diffuser_is_thin_sheet",
            "ENV_WIDTH", "MAP_CELL_MM", "LUMINAIRE_GROUP", "OCCLUDER_OFFSET_MM"]
 
 #: environment map width (px) per quality preset
@@ -493,6 +493,14 @@ def _diffuser_sheet(ir, effects: dict, lum_group, notes: list[str]) -> list[Tran
                               reference_transmittance=(reference_transmittance(ir)
                                                        if sc.get("type") == "roughness" else None),
                               group=lum_group)]
+
+
+def diffuser_is_thin_sheet(ir, effects: dict) -> bool:
+    """Does the bake draw the booth's diffuser as a sheet of no thickness (a clear or rough plate,
+    an opal plate without a diffuse part or whose medium cannot be fitted), the sheet
+    :func:`_diffuser_sheet` makes?"""
+    sheets = _diffuser_sheet(ir, effects, None, [])
+    return bool(sheets) and sheets[0].model == "thin"
 
 
 def _environment_products(ir, quality: str, env_width: int | None, turning: bool) -> list:

@@ -390,3 +390,15 @@ def test_the_bake_says_its_sheet_leaves_out_the_plates_thickness(ir):
     # 3 mm × (1 − 1/1.49): the lamps 0.99 mm closer near the plate's normal
     assert "diffuser: a sheet of no thickness; the 3 mm plate's refraction" in notes
     assert "lamps behind it 0.99 mm closer" in notes
+
+
+def test_the_cross_check_compares_a_thin_sheet_with_the_plate_of_no_thickness(ir):
+    # the plate the bake draws decides: a rough plate and an opal plate without a diffuse part are
+    # sheets of no thickness, an opal plate with one is a slab of its thickness
+    from lbscene.bakers.from_ir import diffuser_is_thin_sheet
+
+    assert diffuser_is_thin_sheet(ir, {"diffuser": {}})
+    assert not diffuser_is_thin_sheet(ir, {})
+    opal = compile_booth(REPO / "tests" / "data" / "validation" / "opal-black")
+    assert not diffuser_is_thin_sheet(opal, {"diffuser": {}})
+    assert diffuser_is_thin_sheet(opal, {"diffuser": {"diffuse_fraction": 0.0}})
