@@ -12,10 +12,11 @@ Two comparisons at measurement points (default: the seed's 55-point grid):
   booth's effects, ``interreflection`` included.
 
 Both ignore the meter (``detector_cosine_error``): Cycles' sensors are ideal
-cosine receivers.  A clear or rough plate is a sheet of no thickness in the bake: the model
-runs with the diffuser's ``thickness_refraction`` off (its paths are not refracted through the
-plate's thickness, which brings the lamps behind a 4 mm glass plate 1.4 mm closer).  The report gives, per point, the spectral and photometric
-ratio Cycles/model and the bake's own noise estimate.
+cosine receivers.  A diffuser the bake draws as a sheet of no thickness (a clear or rough plate:
+:func:`~lbscene.bakers.from_ir.diffuser_is_thin_sheet`) is compared with the model's plate with
+``thickness_refraction`` off (its paths not refracted through the plate's thickness, which brings
+the lamps behind a 4 mm glass plate 1.4 mm closer).  The report gives, per point, the spectral and
+photometric ratio Cycles/model and the bake's own noise estimate.
 
 For inter-reflection Cycles traces up to :data:`CONVERGED_BOUNCES` bounces
 (the model solves its radiosity to convergence) unless the booth bounds the
