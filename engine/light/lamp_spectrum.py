@@ -26,7 +26,7 @@ def lamp_spectrum_1nm(ir, lamp, effects: dict) -> np.ndarray:
     if "lamp_spectrum_shift" in effects:
         p = effect_params(LampSpectrumShiftEffect, effects["lamp_spectrum_shift"])
         if lamp_selected(p, lamp.id):
-            e = aged_spectrum_1nm(e, p.shift_nm, p.tilt)
+            e = aged_spectrum_1nm(e, p.shift_nm, p.tilt, p.curvature)
     if "spectral_filter" in effects:
         p = effect_params(SpectralFilterEffect, effects["spectral_filter"])
         fid = SpectralFilterEffect.filter_for(ir, p, lamp)

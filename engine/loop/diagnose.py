@@ -167,14 +167,23 @@ def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: flo
                 return False
             if level_test and abs(r.mean()) * math.sqrt(r.size) > z:
                 return False
-    if spectral_noise_percent:
-        s = fit.spectral_residual_percent
-        if s is not None:
-            s = s[np.isfinite(s)] / spectral_noise_percent
-            if s.size > 2:
-                if float(s @ s) > chi2_limit(max(s.size - 1 - k_s, 1), alpha):
-                    return False
-    return True
+    return _tile_consistent(fit, spectral_noise_percent, k_s, alpha)
+
+
+def _tile_consistent(fit: FitResult, spectral_noise_percent: float | None, k_s: int | None = None,
+                     alpha: float = GOF_ALPHA) -> bool:
+    """:func:`consistent_with_noise`'s test of the white-tile bands alone (on ``n − 1 − k_s``
+    degrees of freedom, ``k_s`` the parameters that shape spectra only)."""
+    if not spectral_noise_percent:
+        return True
+    s = fit.spectral_residual_percent
+    if s is None:
+        return True
+    s = s[np.isfinite(s)] / spectral_noise_percent
+    if s.size <= 2:
+        return True
+    k_s = _spectral_parameters(fit) if k_s is None else k_s
+    return float(s @ s) <= chi2_limit(max(s.size - 1 - k_s, 1), alpha)
 
 
 def _spectral_parameters(fit: FitResult) -> int:
@@ -981,7 +990,7 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     d.where = _where(meas, b.fit)
     d.verdict = _decide(consistent, [_scored(x) for x in suspects if not x.not_eligible],
                         [_scored(x) for x in pairs if not x.not_eligible])
-    d.confidence = _confidence(d, b.bic, b.noise)
+    d.confidence = _confidence(d, b.bic, b.noise, b.ctest)
     _explain(d, meas, base_problem.effects, b.noise)
     d.verdict = _unstable(d.verdict, d.confidence)
     if d.verdict.kind == "unstable":
@@ -1050,7 +1059,7 @@ def _spectral_only(items) -> bool:
     return all(_channels(i) == ("spectral",) for i in items)
 
 
-def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidence:
+def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict | None = None) -> Confidence:
     """ΔBIC margins and the recurrence of the verdict under resampled noise.
 
     Linearised parametric bootstrap: data are redrawn from the verdict's own model with the
@@ -1060,7 +1069,10 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidenc
     ``unexplained`` the model resampled is the best partial explanation with the structure it
     leaves kept: its χ² is drawn as χ²_dof plus the excess it leaves (χ² − dof).  The same
     decision rule (:func:`_decide`) is applied to each resample; ``shares`` counts the verdicts
-    they give.
+    they give.  Whether an explanation reaches the noise in a resample is the same test as on the
+    data (:func:`consistent_with_noise`, ``ctest`` its arguments): the whole χ², the readings'
+    block and their mean (moved by the same draw) and the white tile's block (not resampled: kept
+    as the data give it).
     """
     v = d.verdict
     hyps = [x for x in d.suspects + d.pairs if not x.not_eligible]
@@ -1095,13 +1107,28 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel) -> Confidenc
 
     base_chi2 = moved(d.base, d.base.chi2) if winner is not None else chi2_w
     base_ok = base_chi2 <= chi2_limit(max(d.base.dof, 1))
+    ctest = ctest or {}
+
+    def blocks_ok(fit):
+        # the data's block tests, the readings' moved by the same draw as the whole χ²
+        ok = np.full(BOOTSTRAP_SAMPLES, _tile_consistent(fit, ctest.get("spectral_noise_percent")))
+        if fit.lux_pred is None or not ctest.get("noise_percent"):
+            return ok
+        zx = fit.residual_percent / noise.percent
+        dk = zx - z_w
+        k = fit.n_params - _spectral_parameters(fit)
+        ok &= float(zx @ zx) + 2.0 * (eps @ dk) <= chi2_limit(max(n - k, 1))
+        if ctest.get("level_test"):
+            ok &= np.abs(dk.mean() + eps.mean(axis=1)) * math.sqrt(n) <= NOISE_Z
+        return ok
+
     cols = []
     for x in hyps:
         c = chi2_w if x is winner else moved(x.fit, x.chi2)
         lim = limit if x is winner else chi2_limit(max(x.fit.dof, 1))
         # score = base BIC − BIC: the parameter penalties are those of the fits
         pen = d.base.chi2 - x.chi2 - x.score       # (k_x − k_base)·ln n
-        cols.append((x, base_chi2 - (c + pen), c <= lim))
+        cols.append((x, base_chi2 - (c + pen), (c <= lim) if x is winner else (c <= lim) & blocks_ok(x.fit)))
     meta = [(x.effects, len(x.effects) > 1, _spectral_only(x.items), x.n_params) for x, _, _ in cols]
     sc_rows = np.stack([sc for _, sc, _ in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES
     ok_rows = np.stack([ok for _, _, ok in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES

@@ -32,8 +32,8 @@ hypothesis               effect it turns on         channel   what is fitted
                                                               on, above it facing down or behind it
                                                               facing the room (a choice): its
                                                               distance from the lamp axis
-                                                              (profiled), its reflectance; its
-                                                              width assumed
+                                                              (profiled), its width across the
+                                                              lamp (profiled), its reflectance
 ``ceiling_reflectance``  ``surface_reflectance``    spatial   the ceiling's reflectance
 ``walls_reflectance``    ``surface_reflectance``    spatial   the side and rear walls' reflectance
 ``smooth_filter``        ``spectral_filter``        spectral  a transmittance in front of every lamp,
@@ -42,10 +42,10 @@ hypothesis               effect it turns on         channel   what is fitted
                                                               range, as many as the BIC chooses (knots
                                                               down to the tile's sampling), with its
                                                               uncertainty
-``lamp_ageing``          ``lamp_spectrum_shift``    spectral  each lamp's spectrum shifted and tilted
-                                                              at its declared luminous output: the
-                                                              shift and the tilt (not hardware: always
-                                                              tried)
+``lamp_ageing``          ``lamp_spectrum_shift``    spectral  each lamp's spectrum shifted, tilted and
+                                                              curved at its declared luminous output:
+                                                              the shift, tilt and curvature (not
+                                                              hardware: always tried)
 =======================  =========================  ========  ========================================
 
 The plate hypotheses are refitted like catalog effects (the forward model on the augmented
@@ -199,8 +199,12 @@ MIRROR_DISTANCES_MM = (20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0)
 SURFACE_REFLECTANCES = (0.03, 0.15, 0.35, 0.6, 0.85)
 #: id of the fitted mirror, and of the fitted materials, in the written YAML
 FITTED_MIRROR_ID = "fitted_mirror"
-#: width of a hypothesised mirror across the lamp axis (a luminaire's reflector; not fitted)
-MIRROR_WIDTH_MM = 100.0
+#: widths (mm) of a hypothesised mirror across the lamp axis, profiled (those that fit: a mirror
+#: above a lamp no wider than the room to its neighbours and the walls, one behind it no taller
+#: than twice the room between the lamp and the ceiling)
+MIRROR_WIDTHS_MM = (40.0, 60.0, 90.0, 130.0, 200.0)
+#: the width a hypothesised mirror is built with before its width is profiled
+MIRROR_WIDTH_MM = 90.0
 CAVITY_MATERIAL_ID = "cavity_interior"
 
 
@@ -958,7 +962,30 @@ class MirrorHypothesis(Hypothesis):
         return tuple(d for d in MIRROR_DISTANCES_MM if r + 2.0 < d <= room)
 
     @classmethod
-    def _mirrors(cls, ir, lighting, placement: str, distance_mm: float):
+    def _widths(cls, ir, lighting, placement: str = "above") -> tuple[float, ...]:
+        """Mirror widths that fit: above the lamps, within the room across the axis to the next
+        lamp (half the spacing on each side) and to the walls; behind them, within twice the room
+        between each lamp's axis and the ceiling."""
+        lamps = cls._lamps(ir, lighting)
+        if placement == "above":
+            x0, x1, y0, y1 = _floor_bounds_mm(ir)
+            room = np.inf
+            for lp in lamps:
+                p = np.asarray(lp.position_mm, float)
+                ax = np.abs(np.asarray(lp.axis, float)) if lp.kind == "tube" else np.zeros(3)
+                k = 0 if ax[0] < 0.9 else 1          # the floor axis across the lamp
+                lo, hi = (x0, x1) if k == 0 else (y0, y1)
+                half = min(p[k] - lo, hi - p[k])
+                for q in lamps:
+                    if q is not lp and abs(float(q.position_mm[k]) - p[k]) > 1.0:
+                        half = min(half, abs(float(q.position_mm[k]) - p[k]) / 2.0)
+                room = min(room, 2.0 * half)
+        else:
+            room = min(2.0 * (float(ir.interior.height_mm) - float(lp.position_mm[2])) for lp in lamps)
+        return tuple(w for w in MIRROR_WIDTHS_MM if w <= room + 1e-6)
+
+    @classmethod
+    def _mirrors(cls, ir, lighting, placement: str, distance_mm: float, width_mm: float = MIRROR_WIDTH_MM):
         """``ir`` with the hypothesised mirrors: one reflector per direction they face."""
         from lbscene.engine.scene.ir import IRReflector, IRSpectrum
 
@@ -970,7 +997,7 @@ class MirrorHypothesis(Hypothesis):
         mine = {k: v for k, v in ir.reflectors.items() if not k.startswith(FITTED_MIRROR_ID)}
         unit = IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid)
         refl = {rid: IRReflector(id=rid, type="plane", reflectance=unit, distance_mm=float(distance_mm),
-                                 normal=n, width_mm=MIRROR_WIDTH_MM) for n, rid in ids.items()}
+                                 normal=n, width_mm=float(width_mm)) for n, rid in ids.items()}
         lamps_ = tuple(lp.model_copy(update={"reflector": ids[normals[lp.id]]}) if lp.id in normals else lp
                        for lp in ir.lamps)
         return ir.model_copy(update={"reflectors": {**mine, **refl}, "lamps": lamps_})
@@ -979,7 +1006,9 @@ class MirrorHypothesis(Hypothesis):
     def augment(cls, ir, lighting, known_groups):
         grid = cls._grid(ir, lighting)
         d0 = grid[min(1, len(grid) - 1)] if grid else max(float(lp.radius_mm) for lp in cls._lamps(ir, lighting)) + 5
-        aug = cls._mirrors(ir, lighting, "above", d0)
+        widths = cls._widths(ir, lighting, "above")
+        w0 = MIRROR_WIDTH_MM if not widths or MIRROR_WIDTH_MM in widths else widths[-1]
+        aug = cls._mirrors(ir, lighting, "above", d0, w0)
         return aug, {"reflector": {}}, [FreeParameter("effect.reflector.reflectance_scale", (0.05, 1.0), 0.8)]
 
     @classmethod
@@ -987,20 +1016,27 @@ class MirrorHypothesis(Hypothesis):
         above = cls._grid(ir, lighting, "above")
         behind = cls._grid(ir, lighting, "behind")
         both = tuple(d for d in above if d in behind)
+        first = ir.reflectors[FITTED_MIRROR_ID]
+        w_above, w_behind = cls._widths(ir, lighting, "above"), cls._widths(ir, lighting, "behind")
         if len(both) >= 3:
-            # where it is, first: it decides what the distance means
-            return [GeometryParameter("behind", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
-                    GeometryParameter("distance_mm", both, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
-                                      (both[0], both[-1]))]
-        if len(above) < 3:
+            # where it is, first: it decides what the distance and the width mean
+            out = [GeometryParameter("behind", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
+                   GeometryParameter("distance_mm", both, first.distance_mm, (both[0], both[-1]))]
+            widths = tuple(w for w in w_above if w in w_behind)
+        elif len(above) >= 3:
+            out = [GeometryParameter("distance_mm", above, first.distance_mm, (above[0], above[-1]))]
+            widths = w_above
+        else:
             return []
-        return [GeometryParameter("distance_mm", above, ir.reflectors[FITTED_MIRROR_ID].distance_mm,
-                                  (above[0], above[-1]))]
+        if len(widths) >= 3 and first.width_mm in widths:
+            out.append(GeometryParameter("width_mm", widths, first.width_mm, (widths[0], widths[-1])))
+        return out
 
     @classmethod
     def regeometry(cls, ir, lighting, values):
         placement = "behind" if values.get("behind", 0.0) >= 0.5 else "above"
-        return cls._mirrors(ir, lighting, placement, values["distance_mm"])
+        width = values.get("width_mm", ir.reflectors[FITTED_MIRROR_ID].width_mm)
+        return cls._mirrors(ir, lighting, placement, values["distance_mm"], width)
 
     @classmethod
     def hardware_yaml(cls, ir, fit):
@@ -1014,15 +1050,18 @@ class MirrorHypothesis(Hypothesis):
         where = "behind the lamps, facing the room" if behind else "above the lamps, facing down"
         why = _choice_note(fit, cls.id, "behind", "behind" if behind else "above", "above and behind",
                            "placement")
-        out = (f"reflectors:   # hypothesis: a mirror {where}; width assumed, distance and reflectance "
-               f"fitted{why}\n")
+        w, wse = _geo(fit, cls.id, "width_mm", None)
+        fitted = "distance, width and reflectance fitted" if w is not None else \
+            "width assumed, distance and reflectance fitted"
+        out = f"reflectors:   # hypothesis: a mirror {where}; {fitted}{why}\n"
         for rid, r in mirrors.items():
             n = r.normal
             out += (f"  {rid}: {{type: plane, reflectance: {{type: constant, value: {rho:.3f}}}, "
                     f"distance_mm: {_g(r.distance_mm)}, normal: [{_g(n[0])}, {_g(n[1])}, {_g(n[2])}], "
                     f"width_mm: {_g(r.width_mm)}}}"
                     + (f"   # reflectance ± {_g(se)};" if se else "   #")
-                    + _pm(d, dse, " mm").replace("   #", " distance", 1) + "\n")
+                    + _pm(d, dse, " mm").replace("   #", " distance", 1)
+                    + ("" if w is None else _pm(w, wse, " mm").replace("   #", "; width", 1)) + "\n")
         out += "lamps:   # the lamps that are on get the mirror (merged by id)\n"
         out += "".join(f"  - {{id: {lp.id}, reflector: {lp.reflector}}}\n" for lp in ir.lamps
                        if lp.reflector in mirrors)
@@ -1400,7 +1439,7 @@ def fit_filter_by_evidence(problem: FitProblem, fit: FitResult, known: bool):
 
 
 class _AgedProblem(_ReshapedProblem):
-    """Each lamp group's spectrum shifted and tilted at its declared luminous output
+    """Each lamp group's spectrum shifted, tilted and curved at its declared luminous output
     (:func:`~lbscene.engine.light.effects.builtin.lamp_spectrum_shift.aged_spectrum_1nm`):
     the factor on group ``g`` is :math:`S_{a,g}(λ) / S_g(λ)` (the group's lamps summed)."""
 
@@ -1419,12 +1458,49 @@ class _AgedProblem(_ReshapedProblem):
     def factors(self, values_nl) -> np.ndarray:
         from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import aged_spectrum_1nm
 
-        shift, tilt = (float(v) for v in values_nl)
+        shift, tilt, curvature = (float(v) for v in values_nl)
         out = np.ones_like(self._S)
         for k, S in enumerate(self._S):
             ok = S > 1e-9 * S.max() if S.max() > 0 else np.zeros(S.shape, bool)
-            out[k, ok] = aged_spectrum_1nm(S, shift, tilt)[ok] / S[ok]
+            out[k, ok] = aged_spectrum_1nm(S, shift, tilt, curvature)[ok] / S[ok]
         return out
+
+
+#: rounds of a spectral reshaping fitted on the base fit, the base's own non-linear parameters
+#: refitted with it held (:func:`_rebase`), and it refitted on them
+RESHAPE_ROUNDS = 3
+#: χ² a round must gain to be kept
+RESHAPE_GAIN = 0.5
+
+
+def _rebase(problem: FitProblem, fit: FitResult, effects: dict, res: FitResult, ir=None) -> FitResult | None:
+    """The base's non-linear parameters (an inter-reflection's scale, …) refitted with a spectral
+    reshaping held (``effects``: the reshaping's effect at its fitted values, ``res`` its fit),
+    from ``fit``'s values; None when the base has none, when the reshaping already reaches the
+    noise (:func:`~lbscene.engine.loop.diagnose.consistent_with_noise`, as the diagnosis tests
+    it), or when the refit gains less than :data:`RESHAPE_GAIN`.
+
+    A reshaping is fitted on the base fit with the base's non-linear values fixed; but that fit
+    was made without it, and its parameters may have bent to pay for the spectrum it could not
+    follow (an inter-reflection scaled down 3 % to lower the white tile's level, at the cost of
+    the readings).  Refitted with the reshaping held, they return; the reshaping is then
+    refitted on them (block coordinate descent, :data:`RESHAPE_ROUNDS`).  ``ir``: the booth with
+    the reshaping's hardware (a fitted filter), spectral only, so the forward cache is shared."""
+    from lbscene.engine.loop.diagnose import consistent_with_noise
+
+    if not problem.nl or consistent_with_noise(res, noise_percent=problem.noise_percent,
+                                               spectral_noise_percent=problem.spectral_noise_percent,
+                                               level_test=bool(problem.meas.known_output_groups)):
+        return None
+    free = [replace(f, initial=float(np.clip(fit.values.get(f.target, f.initial), *f.bounds))) for f in problem.free]
+    meas = problem.meas if ir is None else replace(problem.meas, ir=ir)
+    p2 = FitProblem(meas, {**problem.effects, **effects}, free, problem.noise_percent,
+                    problem.spectral_noise_percent, problem.cache, tolerance=problem.tolerance)
+    f2 = p2.solve(errors=False)
+    if not f2.chi2 < res.chi2 - RESHAPE_GAIN:
+        return None
+    f2.effects = {k: v for k, v in f2.effects.items() if k not in effects}
+    return f2
 
 
 def _reshaped_result(fp: _ReshapedProblem, res: FitResult, fit: FitResult) -> FitResult:
@@ -1450,6 +1526,19 @@ class SmoothFilterHypothesis(Hypothesis):
         if problem.tile_row is None:
             return None
         fp, res, tried = fit_filter_by_evidence(problem, fit, known)
+        base_fit = fit
+        for _ in range(RESHAPE_ROUNDS - 1):
+            # the base's own parameters refitted with the filter held, the filter on them
+            logt = np.log(fp.transmittance_1nm([res.values[fp.free[i].target] for i in fp.nl]))
+            nxt = _rebase(problem, base_fit, {cls.effect: {"filter": FITTED_FILTER_ID}}, res,
+                          ir=cls._with_filter(problem.ir, np.exp(logt)))
+            if nxt is None:
+                break
+            fp2 = _FilteredProblem(problem, nxt, known, initial_log_1nm=logt, knots_nm=fp.knots_nm)
+            r2 = fp2.solve()
+            if r2.chi2 >= res.chi2 - RESHAPE_GAIN:
+                break
+            fp, res, base_fit = fp2, r2, nxt
         x = [res.values[fp.free[i].target] for i in fp.nl]
         T = fp.transmittance_1nm(x)
         # σ of log T from the coefficients' covariance
@@ -1464,16 +1553,20 @@ class SmoothFilterHypothesis(Hypothesis):
                                "knot_spacing_nm": float(np.diff(fp.knots_nm).min()),
                                "resolution_nm": fp._sb.resolution_nm, "bic_by_basis_size": tried}
         # the parameters held from the fit it was added to keep their values
-        res.values = {**fit.values, **res.values}
+        res.values = {**base_fit.values, **res.values}
         # the fitted filter as booth hardware: the booth of this explanation, for whoever
         # predicts with it (plan)
-        from lbscene.engine.scene.ir import IRFilter, IRSpectrum
-
-        base_ir = getattr(fit, "ir", None) or problem.ir
-        filt = IRFilter(id=FITTED_FILTER_ID, transmittance=IRSpectrum.from_1nm(T, base_ir.grid))
-        res.ir = base_ir.model_copy(update={"filters": {**base_ir.filters, FITTED_FILTER_ID: filt}})
+        res.ir = cls._with_filter(getattr(fit, "ir", None) or problem.ir, T)
         res.effects = {**res.effects, cls.effect: {"filter": FITTED_FILTER_ID}}
         return res
+
+    @staticmethod
+    def _with_filter(ir, T_1nm):
+        """``ir`` with the fitted filter (transmittance ``T_1nm``) among its filters."""
+        from lbscene.engine.scene.ir import IRFilter, IRSpectrum
+
+        filt = IRFilter(id=FITTED_FILTER_ID, transmittance=IRSpectrum.from_1nm(T_1nm, ir.grid))
+        return ir.model_copy(update={"filters": {**ir.filters, FITTED_FILTER_ID: filt}})
 
     @classmethod
     def effect_entry(cls, fit):
@@ -1508,13 +1601,13 @@ class SmoothFilterHypothesis(Hypothesis):
 
 
 class LampAgeingHypothesis(Hypothesis):
-    """The lamps' spectrum aged: shifted and tilted at the declared luminous output, both fitted
+    """The lamps' spectrum aged: shifted, tilted and curved at the declared luminous output, fitted
     on the white tile.  Not hardware: tried whenever the booth does not enable the effect."""
 
     id = "lamp_ageing"
     effect = "lamp_spectrum_shift"
     channel = "spectral"
-    summary = "the lamps' spectrum shifted and tilted (ageing) at the declared output"
+    summary = "the lamps' spectrum shifted, tilted and curved (ageing) at the declared output"
     hardware = False
 
     @classmethod
@@ -1525,15 +1618,24 @@ class LampAgeingHypothesis(Hypothesis):
     def fit_on(cls, problem, fit, known):
         if problem.tile_row is None:
             return None
-        fp = _AgedProblem(problem, fit)
-        res = _reshaped_result(fp, fp.solve(), fit)
+        cur, res = fit, None
+        for _ in range(RESHAPE_ROUNDS):
+            fp = _AgedProblem(problem, cur)
+            r = _reshaped_result(fp, fp.solve(), cur)
+            if res is not None and r.chi2 >= res.chi2 - RESHAPE_GAIN:
+                break
+            res = r
+            nxt = _rebase(problem, cur, {cls.effect: cls.effect_entry(res)}, res)
+            if nxt is None:
+                break
+            cur = nxt
         res.hypothesis_data = {"known": known}
         res.effects = {**res.effects, cls.effect: cls.effect_entry(res)}
         return res
 
     @classmethod
     def effect_entry(cls, fit):
-        return {n: float(fit.values[f"effect.{cls.effect}.{n}"]) for n in ("shift_nm", "tilt")
+        return {n: float(fit.values[f"effect.{cls.effect}.{n}"]) for n in ("shift_nm", "tilt", "curvature")
                 if f"effect.{cls.effect}.{n}" in fit.values}
 
     @classmethod

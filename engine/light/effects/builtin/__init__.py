@@ -21,7 +21,7 @@ diffuser               geometric   plate: spectral transmittance, Fresnel angula
 aperture_occlusion     geometric   occluders (aperture plates, panels) block lamp→point paths
 tube_end_falloff       geometric   tube emission falls linearly toward the ends
 spectral_filter        spectral    a filter's transmittance multiplies a lamp's spectrum
-lamp_spectrum_shift    spectral    the lamps' spectrum shifted and tilted (ageing)
+lamp_spectrum_shift    spectral    the lamps' spectrum shifted, tilted and curved (ageing)
 detector_cosine_error  instrument  the meter reads cos^k or f2-type response instead of cos
 reflector              geometric   a mirror behind the lamp adds a mirror image; blocks behind
 =====================  ==========  ============================================================
