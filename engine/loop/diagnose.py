@@ -1149,10 +1149,14 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict 
 
 def _supports(r: Verdict, v: Verdict) -> bool:
     """Whether a resample's verdict ``r`` is the verdict ``v``: the same, or for a tie, a tie or
-    a single explanation among its alternatives (a tie says the cause is one of them)."""
+    a single explanation among its alternatives (a tie says the cause is one of them); for
+    ``unexplained``, any unexplained verdict (its best partial explanation is an aside, and the
+    shares count it as one verdict)."""
     if v.kind == "ambiguous" and r.kind in ("missing", "ambiguous"):
         named = [r.effects] if r.kind == "missing" else list(r.alternatives)
         return set(named) <= set(v.alternatives)
+    if v.kind == "unexplained":
+        return r.kind == "unexplained"
     return r == v
 
 

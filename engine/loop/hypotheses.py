@@ -351,8 +351,23 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 sig.setdefault(p.name, None)
                 continue
             xs = np.array(sorted(set(p.grid) | {values[p.name]}), float)
-            chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
-            j = int(np.argmin(chi))
+            partner = next((q for q in params if q.name == H.categorical_partner(p.name)), None) \
+                if p.categorical and not sweep else None
+            if partner is not None:
+                # each choice at its own best value of the property it decides the meaning of
+                # (a mirror behind the lamps at its best distance against one above at its)
+                ys = sorted(set(partner.grid) | {values[partner.name]})
+                best_y, chi = [], []
+                for x in xs:
+                    c = [at({**values, p.name: float(x), partner.name: float(y)})[2].chi2 for y in ys]
+                    best_y.append(float(ys[int(np.argmin(c))]))
+                    chi.append(min(c))
+                chi = np.array(chi)
+                j = int(np.argmin(chi))
+                values[partner.name] = best_y[j]
+            else:
+                chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
+                j = int(np.argmin(chi))
             if p.categorical:
                 values[p.name] = float(xs[j])
                 sig[p.name] = None
@@ -444,7 +459,9 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
     Returns
     -------
     dict : ``(a, b)`` → ``{"rho": ρ or None, "sigma": {a: σ or None, b: σ or None}[, "range":
-    {a: (lo, hi), b: (lo, hi)}]}``.
+    {a: (lo, hi), b: (lo, hi)}][, "sharp": True]}``; ``sharp``: no quadratic, but no refit other
+    than the best within :math:`Δχ^2 = 4\max(1, χ^2_\text{min}/ν)`: a minimum sharper than the
+    refits are spaced, the 1-D uncertainties kept.
     """
     names = [p.name for p in params if not p.categorical and sig.get(p.name) is not None]
     byname = {p.name: p for p in params}
@@ -493,6 +510,11 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
                 near = pts[pts[:, 2] <= pts[:, 2].min() + 4.0 * infl * (1 + 1e-9)]
                 rng = {n: (float(values[n] + s_ * near[:, k].min()), float(values[n] + s_ * near[:, k].max()))
                        for k, (n, s_) in enumerate(((a, sa), (b, sb)))}
+                if len(near) == 1:
+                    # no refit but the best within Δχ² = 4 infl: a minimum sharper than the
+                    # refits' spacing (a mirror's distance), not a ridge: the 1-D uncertainties stand
+                    out[(a, b)] = {"rho": None, "sigma": {a: sa, b: sb}, "range": rng, "sharp": True}
+                    continue
                 out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}, "range": rng}
                 continue
             out[(a, b)] = {"rho": float(S[0, 1] / math.sqrt(S[0, 0] * S[1, 1])),
@@ -623,6 +645,12 @@ class Hypothesis(ABC):
         """Whether property ``name`` matters at ``values`` (a rough plate's roughness does not
         for an opal plate)."""
         return True
+
+    @classmethod
+    def categorical_partner(cls, name: str) -> str | None:
+        """The property a categorical property ``name`` is first profiled together with (each
+        choice at its own best value of it), or None: each choice at the current values."""
+        return None
 
     @classmethod
     def starts(cls) -> list[dict[str, float]]:
@@ -862,11 +890,11 @@ class AperturePlateHypothesis(PlateHypothesis):
         out = ""
         for pair, j in (getattr(fit, "hypothesis_data", None) or {}).get("joint", {}).get(cls.id, {}).items():
             a, b = pair.split("|")
-            if j["rho"] is None:
+            if j["rho"] is None and not j.get("sharp"):
                 span_ = "; ".join(f"{n} {_g(lo)} to {_g(hi)}" for n, (lo, hi) in j.get("range", {}).items())
                 out += (f"# hypothesis: {a} and {b} trade off: these readings cannot tell them apart"
                         + (f"; Δχ² ≤ 4 allows {span_}" if span_ else "") + "\n")
-            elif abs(j["rho"]) >= 0.7:
+            elif j["rho"] is not None and abs(j["rho"]) >= 0.7:
                 out += (f"# hypothesis: {a} and {b} trade off (correlation {j['rho']:+.2f}): their "
                         "uncertainties below are the joint ones\n")
         if "interior_reflectance" in geo:
@@ -1031,6 +1059,12 @@ class MirrorHypothesis(Hypothesis):
         if len(widths) >= 3 and first.width_mm in widths:
             out.append(GeometryParameter("width_mm", widths, first.width_mm, (widths[0], widths[-1])))
         return out
+
+    @classmethod
+    def categorical_partner(cls, name):
+        # the distance decides how a placement looks (narrow minima, 10 mm apart): each placement
+        # at its best distance
+        return "distance_mm" if name == "behind" else None
 
     @classmethod
     def regeometry(cls, ir, lighting, values):
