@@ -2,7 +2,9 @@
 ``diffuser``: a plate below the lamps transmits and scatters their light.
 
 Kind ``geometric`` (and spectral: the plate's transmittance).  Straight paths through the
-plate get its spectral transmittance and the Fresnel angular loss; an opal plate's diffuse
+plate get its spectral transmittance and the Fresnel angular loss, and are refracted through its
+thickness (:func:`lbscene.engine.light.plates.slab_crossing`: the lamps behind a plate look
+:math:`t(1 - 1/n)` closer; ``thickness_refraction``); an opal plate's diffuse
 fraction enters its top face and is re-emitted from its bottom face's cells with the scattering
 layer's bidirectional law: the light of every emitter point on each cell binned by direction
 and carried to every exit direction and azimuth (:mod:`lbscene.engine.light.opal_layer`).  The declared transmittance is the
