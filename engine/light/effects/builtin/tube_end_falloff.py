@@ -3,6 +3,12 @@
 
 Kind ``geometric``: cathodes and phosphor ageing make a fluorescent tube darker over
 ``falloff_length_mm`` at each end, down to ``end_level`` at the very end.
+
+A fit moves the fall-off over at most half the shortest tube that is on
+(:meth:`TubeEndFalloffEffect.fit_parameters_for`): the middle of a tube keeps the output the
+booth declares (a luminance is measured there).  A fall-off over more than half the tube dims its
+middle too: with the output known, a uniform loss (an undeclared 80 % plate under 750 mm tubes)
+was fitted as a fall-off over 560 mm from each end and called ``missing:tube_end_falloff``.
 """
 
 from __future__ import annotations
@@ -31,6 +37,16 @@ class TubeEndFalloffEffect(PhysicalEffect):
         falloff_length_mm: float = Field(100.0, gt=0, le=2000,
                                          description="Length over which emission falls at each end.")
         end_level: float = Field(0.5, ge=0, le=1, description="Relative emission at the very end.")
+
+    @classmethod
+    def fit_parameters_for(cls, ir, lighting) -> dict:
+        """The fit's bounds: ``falloff_length_mm`` up to half the shortest tube that is on."""
+        tubes = [lp.length_mm for lp in lamps_on(ir, lighting) if lp.kind == "tube" and lp.length_mm > 0]
+        out = dict(cls.fit_parameters)
+        if tubes:
+            lo, hi = out["falloff_length_mm"]
+            out["falloff_length_mm"] = (lo, max(min(hi, 0.5 * min(tubes)), 2.0 * lo))
+        return out
 
     @classmethod
     def applicable(cls, ir, lighting):
