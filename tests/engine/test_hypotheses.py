@@ -383,13 +383,16 @@ def test_a_mirror_behind_tubes_faces_the_room_from_the_wall_nearest_each_tube(tm
     src = DATA / "validation" / "walls-05"
     ir = compile_booth(src / "booth.yaml")
     aug, _, _ = MirrorHypothesis.augment(ir, "L", [])
-    names = [p.name for p in MirrorHypothesis.geometry(aug, "L")]
-    assert names == ["behind", "distance_mm"]
+    geo = {p.name: p for p in MirrorHypothesis.geometry(aug, "L")}
+    assert list(geo) == ["behind", "distance_mm", "width_mm"]
+    # the widths that fit both placements: above, within the 240 mm between the tubes; behind,
+    # within twice the 80 mm between the tubes' axes (z 620) and the ceiling (z 700)
+    assert geo["width_mm"].grid == (40.0, 60.0, 90.0, 130.0)
     # tubes along x at y = ±110 mm in a box 600 mm deep with its front open: both mirrors are
     # toward the rear wall, facing −y
-    out = MirrorHypothesis.regeometry(aug, "L", {"behind": 1.0, "distance_mm": 35.0})
-    assert {k: (r.normal, r.distance_mm) for k, r in out.reflectors.items()} == {
-        "fitted_mirror": ((0.0, -1.0, 0.0), 35.0)}
+    out = MirrorHypothesis.regeometry(aug, "L", {"behind": 1.0, "distance_mm": 35.0, "width_mm": 60.0})
+    assert {k: (r.normal, r.distance_mm, r.width_mm) for k, r in out.reflectors.items()} == {
+        "fitted_mirror": ((0.0, -1.0, 0.0), 35.0, 60.0)}
     # tubes along y near the left and right walls: one mirror each side, facing the room
     tubes = tuple(lp.model_copy(update={"axis": (0.0, 1.0, 0.0), "position_mm": (x, 0.0, 620.0)})
                   for lp, x in zip(ir.lamps, (-420.0, 380.0)))
