@@ -460,7 +460,7 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
     -------
     dict : ``(a, b)`` → ``{"rho": ρ or None, "sigma": {a: σ or None, b: σ or None}[, "range":
     {a: (lo, hi), b: (lo, hi)}][, "sharp": True]}``; ``sharp``: no quadratic, but no refit other
-    than the best within :math:`Δχ^2 = 4\max(1, χ^2_\text{min}/ν)`: a minimum sharper than the
+    than the best within :math:`Δχ^2 = 4\\max(1, χ^2_\\text{min}/ν)`: a minimum sharper than the
     refits are spaced, the 1-D uncertainties kept.
     """
     names = [p.name for p in params if not p.categorical and sig.get(p.name) is not None]
