@@ -55,7 +55,8 @@ from typing import Literal
 
 import numpy as np
 
-from .fit import FitProblem, FitResult, effect_parameter
+from .fit import (GOF_ALPHA, NOISE_Z, FitProblem, FitResult, _spectral_parameters, _tile_consistent,  # noqa: F401
+                  chi2_limit, consistent_with_noise, effect_parameter)
 from .hypotheses import HYPOTHESES, applicable_hypotheses, profile_geometry
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
@@ -75,11 +76,6 @@ TIE_MARGIN = 10.0
 PAIR_CANDIDATES = 4
 #: Resamples of the linearised parametric bootstrap behind a verdict's recurrence.
 BOOTSTRAP_SAMPLES = 2000
-#: χ²/dof consistency with noise: within this many standard deviations of 1 (the level test's z).
-NOISE_Z = 3.0
-#: Significance level of the goodness-of-fit test behind "nothing is missing": each data block's
-#: χ² must have an upper-tail probability P(χ²_dof ≥ χ²) of at least this.
-GOF_ALPHA = 0.01
 #: A verdict that recurs in fewer of the noise resamples than this is reported as unstable.
 STABLE_SHARE = 0.5
 #: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
@@ -132,73 +128,6 @@ def noise_model(meas) -> NoiseModel:
         src += f" ⊕ declared model uncertainty {u:g} %"
     return NoiseModel(total, est, dec, meas.spectral_noise_percent or DEFAULT_SPECTRAL_NOISE_PERCENT, src,
                       meter_percent=pct, model_percent=u)
-
-
-def chi2_limit(dof: int, alpha: float = GOF_ALPHA) -> float:
-    """The largest χ² the goodness-of-fit test accepts on ``dof`` degrees of freedom:
-    the upper ``alpha`` quantile of the χ² distribution."""
-    from scipy.special import chdtri
-
-    return float(chdtri(max(int(dof), 1), alpha))
-
-
-def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: float | None = None,
-                          spectral_noise_percent: float | None = None, level_test: bool = False,
-                          alpha: float = GOF_ALPHA) -> bool:
-    """Residuals consistent with the noise: a χ² goodness-of-fit test at level ``alpha``.
-
-    The whole fit and each data block on its own (the illuminance readings on
-    ``n − k`` degrees of freedom, the white-tile bands on ``n − 1``) must have
-    :math:`P(χ^2_\\nu \\ge χ^2) \\ge α`; a 1.2 % residual at 1 % noise on 55 readings
-    (χ² ≈ 79, p ≈ 0.007) fails it.  With ``level_test`` (lamp output declared known) also the
-    mean illuminance residual must be within ``z`` standard errors of 0 — a level mismatch of a
-    fraction of the noise is invisible in χ² but certain in the mean of 55 readings.
-    """
-    if fit.chi2 > chi2_limit(fit.dof, alpha):
-        return False
-    # parameters that shape spectra only are paid for by the tile's bands, the others by the readings
-    k_s = _spectral_parameters(fit)
-    k = fit.n_params - k_s
-    if noise_percent:
-        r = fit.residual_percent / noise_percent
-        if r.size:
-            d = max(r.size - k, 1)
-            if float(r @ r) > chi2_limit(d, alpha):
-                return False
-            if level_test and abs(r.mean()) * math.sqrt(r.size) > z:
-                return False
-    return _tile_consistent(fit, spectral_noise_percent, k_s, alpha)
-
-
-def _tile_consistent(fit: FitResult, spectral_noise_percent: float | None, k_s: int | None = None,
-                     alpha: float = GOF_ALPHA) -> bool:
-    """:func:`consistent_with_noise`'s test of the white-tile bands alone (on ``n − 1 − k_s``
-    degrees of freedom, ``k_s`` the parameters that shape spectra only)."""
-    if not spectral_noise_percent:
-        return True
-    s = fit.spectral_residual_percent
-    if s is None:
-        return True
-    s = s[np.isfinite(s)] / spectral_noise_percent
-    if s.size <= 2:
-        return True
-    k_s = _spectral_parameters(fit) if k_s is None else k_s
-    return float(s @ s) <= chi2_limit(max(s.size - 1 - k_s, 1), alpha)
-
-
-def _spectral_parameters(fit: FitResult) -> int:
-    """How many of a fit's free parameters change spectra only (a hypothesised filter's
-    coefficients, a spectral effect's parameters)."""
-    from lbscene.engine.light.effects.registry import available_effects
-
-    if not fit.fitted:
-        return 0
-    eff = available_effects()
-    n = 0
-    for fp in fit.free:
-        if fp.scope == "hypothesis" or (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral"):
-            n += 1
-    return n
 
 
 def moran_i(points: np.ndarray, r: np.ndarray, k: int = 4) -> float:

@@ -122,7 +122,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from .fit import FitProblem, FitResult, FreeParameter
+from .fit import FitProblem, FitResult, FreeParameter, consistent_with_noise
 
 __all__ = [
     "Hypothesis",
@@ -1477,7 +1477,7 @@ class _AgedProblem(_ReshapedProblem):
     (:func:`~lbscene.engine.light.effects.builtin.lamp_spectrum_shift.aged_spectrum_1nm`):
     the factor on group ``g`` is :math:`S_{a,g}(λ) / S_g(λ)` (the group's lamps summed)."""
 
-    def __init__(self, base: FitProblem, fit: FitResult):
+    def __init__(self, base: FitProblem, fit: FitResult, names=("shift_nm", "tilt", "curvature")):
         from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import LampSpectrumShiftEffect
 
         lamps = _lamps_on(base.ir, base.lighting)
@@ -1485,14 +1485,16 @@ class _AgedProblem(_ReshapedProblem):
                             for g in base.groups])
         fps = LampSpectrumShiftEffect.fit_parameters
         init = LampSpectrumShiftEffect.fit_initial
-        free = [FreeParameter(f"effect.{LampAgeingHypothesis.effect}.{n}", tuple(b), float(init.get(n, 0.0)))
-                for n, b in fps.items()]
+        self._names = tuple(names)
+        free = [FreeParameter(f"effect.{LampAgeingHypothesis.effect}.{n}", tuple(fps[n]), float(init.get(n, 0.0)))
+                for n in self._names]
         super().__init__(base, fit, free)
 
     def factors(self, values_nl) -> np.ndarray:
         from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import aged_spectrum_1nm
 
-        shift, tilt, curvature = (float(v) for v in values_nl)
+        v = {"shift_nm": 0.0, "tilt": 0.0, "curvature": 0.0, **dict(zip(self._names, (float(x) for x in values_nl)))}
+        shift, tilt, curvature = v["shift_nm"], v["tilt"], v["curvature"]
         out = np.ones_like(self._S)
         for k, S in enumerate(self._S):
             ok = S > 1e-9 * S.max() if S.max() > 0 else np.zeros(S.shape, bool)
@@ -1511,7 +1513,7 @@ def _rebase(problem: FitProblem, fit: FitResult, effects: dict, res: FitResult, 
     """The base's non-linear parameters (an inter-reflection's scale, …) refitted with a spectral
     reshaping held (``effects``: the reshaping's effect at its fitted values, ``res`` its fit),
     from ``fit``'s values; None when the base has none, when the reshaping already reaches the
-    noise (:func:`~lbscene.engine.loop.diagnose.consistent_with_noise`, as the diagnosis tests
+    noise (:func:`~lbscene.engine.loop.fit.consistent_with_noise`, as the diagnosis tests
     it), or when the refit gains less than :data:`RESHAPE_GAIN`.
 
     A reshaping is fitted on the base fit with the base's non-linear values fixed; but that fit
@@ -1520,8 +1522,6 @@ def _rebase(problem: FitProblem, fit: FitResult, effects: dict, res: FitResult, 
     the readings).  Refitted with the reshaping held, they return; the reshaping is then
     refitted on them (block coordinate descent, :data:`RESHAPE_ROUNDS`).  ``ir``: the booth with
     the reshaping's hardware (a fitted filter), spectral only, so the forward cache is shared."""
-    from lbscene.engine.loop.diagnose import consistent_with_noise
-
     if not problem.nl or consistent_with_noise(res, noise_percent=problem.noise_percent,
                                                spectral_noise_percent=problem.spectral_noise_percent,
                                                level_test=bool(problem.meas.known_output_groups)):
@@ -1652,9 +1652,23 @@ class LampAgeingHypothesis(Hypothesis):
     def fit_on(cls, problem, fit, known):
         if problem.tile_row is None:
             return None
+        # the simpler ageing first: the curvature is fitted only where a shift and a tilt do not
+        # reach the noise (a small smooth misfit of a booth that is right is no ageing)
+        res = cls._fit(problem, fit, ("shift_nm", "tilt"))
+        if not consistent_with_noise(res, noise_percent=problem.noise_percent,
+                                     spectral_noise_percent=problem.spectral_noise_percent,
+                                     level_test=bool(problem.meas.known_output_groups)):
+            res = cls._fit(problem, fit, ("shift_nm", "tilt", "curvature"))
+        res.hypothesis_data = {"known": known}
+        res.effects = {**res.effects, cls.effect: cls.effect_entry(res)}
+        return res
+
+    @classmethod
+    def _fit(cls, problem, fit, names):
+        """The ageing with ``names`` free, refitted with the base's own parameters (:func:`_rebase`)."""
         cur, res = fit, None
         for _ in range(RESHAPE_ROUNDS):
-            fp = _AgedProblem(problem, cur)
+            fp = _AgedProblem(problem, cur, names)
             r = _reshaped_result(fp, fp.solve(), cur)
             if res is not None and r.chi2 >= res.chi2 - RESHAPE_GAIN:
                 break
@@ -1663,8 +1677,6 @@ class LampAgeingHypothesis(Hypothesis):
             if nxt is None:
                 break
             cur = nxt
-        res.hypothesis_data = {"known": known}
-        res.effects = {**res.effects, cls.effect: cls.effect_entry(res)}
         return res
 
     @classmethod

@@ -238,9 +238,10 @@ def _strip_flux_per_peak_intensity(tmp_path):
     p = fm.ctx.params("diffuser")
     polys = D.DiffuserEffect._cells(fm.ir.diffuser, p.scattered_cell_size_mm)
     per_cell = np.zeros(len(polys))
-    for idx, light in D.DiffuserEffect._incoming(fm.ctx, p, direct, p.scattered_cell_size_mm):
-        for _, E, _, _ in light.values():
+    for idx, light, _k in D.DiffuserEffect._incoming(fm.ctx, p, direct, p.scattered_cell_size_mm):
+        for _, E, _, _, E_s in light.values():
             per_cell[idx] += E.sum(axis=1)                          # the cell's mean irradiance, 1/m²
+            assert np.allclose(E_s.sum(axis=1), E.sum(axis=1))      # the sub-points' sums: the same light
     flux = per_cell * quad_areas(polys) * 1e-6                      # per unit peak intensity
     y0 = np.round(polys[:, :, 1].min(axis=1), 6)
     return {(a, a + 25.0): flux[y0 == a].sum() for a in np.unique(y0)}
