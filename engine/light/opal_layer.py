@@ -533,24 +533,39 @@ class OpalLayer:
     def radiance_at(self, modes, cos_o, phi_o_rad) -> np.ndarray:
         """``(C, R, …)``: the radiance of :meth:`exit_modes` ``(C, M + 1, N, …)`` toward ``R``
         directions per group ``(cos_o, phi_o_rad)`` (C, R): linear in the cosine between nodes,
-        :math:`\\sum_m (2 - δ_{m0})\\,\\mathrm{Re}(G_m e^{i m φ_o})`."""
+        :math:`\\sum_m (2 - δ_{m0})\\,\\mathrm{Re}(G_m e^{i m φ_o})`, the series summed by
+        Horner's rule in :math:`z = e^{i φ_o}` (one complex exponential per direction instead of a
+        cosine and a sine per mode)."""
         G = np.asarray(modes)
         C, M1, N = G.shape[:3]
         trail = G.shape[3:]
+        nt = int(np.prod(trail, dtype=int))
         jo, fo = self._split(cos_o)                                           # (C, R)
-        # one mode at a time: the (C, R, M + 1, …) arrays of every mode at once are large
+        # each node's modes side by side: one gather per direction reads them all
+        Gn = np.ascontiguousarray(np.moveaxis(G, 1, 2)).reshape(C * N, M1, nt)
         idx = (np.arange(C)[:, None] * N + jo).ravel()
-        w1 = fo.reshape(fo.shape + (1,) * len(trail))
-        phi = np.asarray(phi_o_rad, float).reshape(w1.shape)
-        out = np.zeros(jo.shape + trail)
-        for m in range(M1):
-            Gm = G[:, m].reshape((C * N,) + trail)
-            v = (1.0 - w1) * Gm[idx].reshape(out.shape) + w1 * Gm[idx + 1].reshape(out.shape)
-            if m == 0:
-                out += v.real
-            else:
-                out += 2.0 * (v.real * np.cos(m * phi) - v.imag * np.sin(m * phi))
-        return out
+        w = fo.reshape(-1, 1, 1)
+        z1 = np.exp(1j * np.asarray(phi_o_rad, float)).reshape(-1, 1)
+        out = np.empty((idx.size, nt))
+        # directions a block at a time: a block's (n, M + 1, …) modes stay in the cache
+        step = max(256, RADIANCE_BLOCK // max(M1 * nt, 1))
+        for a in range(0, idx.size, step):
+            i = idx[a:a + step]
+            g = Gn[i] * (1.0 - w[a:a + step]) + Gn[i + 1] * w[a:a + step]      # (n, M + 1, …)
+            v = g[:, 0].real
+            if M1 > 1:
+                z = z1[a:a + step]
+                acc = g[:, M1 - 1]
+                for m in range(M1 - 2, 0, -1):
+                    acc = acc * z + g[:, m]
+                v = v + 2.0 * (acc * z).real
+            out[a:a + step] = v
+        return out.reshape(jo.shape + trail)
+
+
+#: complex mode values per block of :meth:`OpalLayer.radiance_at` (its blocks of directions stay
+#: in the processor's cache: 54 cells × 21852 directions × 13 modes, 1.0 → 0.2 s)
+RADIANCE_BLOCK = 65536
 
 
 #: the optical depths :func:`opal_layer_at` solves the layer at: a geometric grid of this ratio

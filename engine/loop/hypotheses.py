@@ -1509,6 +1509,15 @@ RESHAPE_ROUNDS = 3
 RESHAPE_GAIN = 0.5
 
 
+def _reaches_noise(problem, res) -> bool:
+    """Whether the fit ``res`` of ``problem`` explains its data down to the noise, as the diagnosis
+    tests an explanation (:func:`~lbscene.engine.loop.fit.consistent_with_noise` with the problem's
+    noise, and the readings' level tested where the lamps' output is known)."""
+    return consistent_with_noise(res, noise_percent=problem.noise_percent,
+                                 spectral_noise_percent=problem.spectral_noise_percent,
+                                 level_test=bool(problem.meas.known_output_groups))
+
+
 def _rebase(problem: FitProblem, fit: FitResult, effects: dict, res: FitResult, ir=None) -> FitResult | None:
     """The base's non-linear parameters (an inter-reflection's scale, …) refitted with a spectral
     reshaping held (``effects``: the reshaping's effect at its fitted values, ``res`` its fit),
@@ -1522,9 +1531,7 @@ def _rebase(problem: FitProblem, fit: FitResult, effects: dict, res: FitResult, 
     the readings).  Refitted with the reshaping held, they return; the reshaping is then
     refitted on them (block coordinate descent, :data:`RESHAPE_ROUNDS`).  ``ir``: the booth with
     the reshaping's hardware (a fitted filter), spectral only, so the forward cache is shared."""
-    if not problem.nl or consistent_with_noise(res, noise_percent=problem.noise_percent,
-                                               spectral_noise_percent=problem.spectral_noise_percent,
-                                               level_test=bool(problem.meas.known_output_groups)):
+    if not problem.nl or _reaches_noise(problem, res):
         return None
     free = [replace(f, initial=float(np.clip(fit.values.get(f.target, f.initial), *f.bounds))) for f in problem.free]
     meas = problem.meas if ir is None else replace(problem.meas, ir=ir)
@@ -1655,9 +1662,7 @@ class LampAgeingHypothesis(Hypothesis):
         # the simpler ageing first: the curvature is fitted only where a shift and a tilt do not
         # reach the noise (a small smooth misfit of a booth that is right is no ageing)
         res = cls._fit(problem, fit, ("shift_nm", "tilt"))
-        if not consistent_with_noise(res, noise_percent=problem.noise_percent,
-                                     spectral_noise_percent=problem.spectral_noise_percent,
-                                     level_test=bool(problem.meas.known_output_groups)):
+        if not _reaches_noise(problem, res):
             res = cls._fit(problem, fit, ("shift_nm", "tilt", "curvature"))
         res.hypothesis_data = {"known": known}
         res.effects = {**res.effects, cls.effect: cls.effect_entry(res)}
