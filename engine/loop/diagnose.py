@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from .fit import (GOF_ALPHA, NOISE_Z, FitProblem, FitResult, _spectral_parameters, _tile_consistent,  # noqa: F401
-                  chi2_limit, consistent_with_noise, effect_parameter)
+                  chi2_limit, consistent_with_noise, effect_parameter, readings_consistent)
 from .hypotheses import HYPOTHESES, applicable_hypotheses, profile_geometry
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
@@ -1046,10 +1046,8 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict 
         zx = fit.residual_percent / noise.percent
         dk = zx - z_w
         k = fit.n_params - _spectral_parameters(fit)
-        ok &= float(zx @ zx) + 2.0 * (eps @ dk) <= chi2_limit(max(n - k, 1))
-        if ctest.get("level_test"):
-            ok &= np.abs(dk.mean() + eps.mean(axis=1)) * math.sqrt(n) <= NOISE_Z
-        return ok
+        return ok & readings_consistent(float(zx @ zx) + 2.0 * (eps @ dk), dk.mean() + eps.mean(axis=1), n, k,
+                                        bool(ctest.get("level_test")))
 
     cols = []
     for x in hyps:

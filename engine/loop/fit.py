@@ -671,13 +671,21 @@ def consistent_with_noise(fit: FitResult, z: float = NOISE_Z, noise_percent: flo
     k = fit.n_params - k_s
     if noise_percent:
         r = fit.residual_percent / noise_percent
-        if r.size:
-            d = max(r.size - k, 1)
-            if float(r @ r) > chi2_limit(d, alpha):
-                return False
-            if level_test and abs(r.mean()) * math.sqrt(r.size) > z:
-                return False
+        if r.size and not readings_consistent(float(r @ r), float(r.mean()), r.size, k, level_test, z, alpha):
+            return False
     return _tile_consistent(fit, spectral_noise_percent, k_s, alpha)
+
+
+def readings_consistent(chi2, mean_z, n: int, k: int, level_test: bool = False, z: float = NOISE_Z,
+                        alpha: float = GOF_ALPHA):
+    """:func:`consistent_with_noise`'s test of the readings' block: their χ² (``chi2``, in noise
+    units) on ``n − k`` degrees of freedom and, with ``level_test``, their mean residual
+    ``mean_z`` (noise units) within ``z`` standard errors of 0.  ``chi2`` and ``mean_z`` may be
+    arrays (resamples: the diagnosis' bootstrap applies the same test to each)."""
+    ok = np.asarray(chi2) <= chi2_limit(max(n - k, 1), alpha)
+    if level_test:
+        ok = ok & (np.abs(np.asarray(mean_z)) * math.sqrt(n) <= z)
+    return ok
 
 
 def _tile_consistent(fit: FitResult, spectral_noise_percent: float | None, k_s: int | None = None,
