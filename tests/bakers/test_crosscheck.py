@@ -248,7 +248,10 @@ _SPECTRALIGHT = ("the model's light with inter-reflection is above both renderer
                  "inter-reflection (TL84, boxes blocking every lamp, 10 A3 points): direct light +0.04 %, "
                  "with inter-reflection -0.99 % at the booth's 100 mm patches, -0.29 % at 50 mm, -0.58 % "
                  "at 30 mm, +0.20 % without the occluders: the light around the white lamp boxes depends on "
-                 "the patch size; not yet traced to an effect")
+                 "the patch size; not yet traced to an effect.  At D65 the model's own light is converged in "
+                 "the patches: the A3 grid's mean at 100, 50 and 30 mm patches (first-order light on each "
+                 "patch at 1 or 3 x 3 points) within 0.05 %, inter-reflected light 228.0 to 229.1 lx of "
+                 "1476 lx, so the 0.74 % is not the patch size there")
 
 
 @pytest.mark.slow
