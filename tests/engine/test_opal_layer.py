@@ -207,3 +207,31 @@ def test_a_cut_azimuthal_series_is_the_law_of_that_many_modes():
         azimuth = np.cos(m * (po[:, None, :] - phi[:, :, None]))
         by_hand += (1.0 if m == 0 else 2.0) * np.einsum("cp,cpr->cr", wgt, f * azimuth)
     np.testing.assert_allclose(cut[2], by_hand, rtol=3e-3, atol=1e-3 * np.abs(by_hand).max())
+
+
+@pytest.mark.parametrize("modes", [1, 2, 13])
+def test_the_radiance_toward_many_directions_is_its_fourier_series(monkeypatch, modes):
+    # the series written out term by term, sum_m (2 - delta_m0) Re(G_m e^{i m phi}), at cosines a
+    # fraction f of the way between two nodes (linear between them); small blocks, so that the
+    # directions run over several
+    import lbscene.engine.light.opal_layer as ol
+
+    monkeypatch.setattr(ol, "RADIANCE_BLOCK", 300)
+    layer = opal_layer(2.0, 0.5, 1.5)
+    nodes = layer.cos_nodes
+    rng = np.random.default_rng(7)
+    C, N, R = 3, len(nodes), 400
+    G = rng.normal(size=(C, modes, N, 2, 3)) + 1j * rng.normal(size=(C, modes, N, 2, 3))
+    j = rng.integers(0, N - 1, (C, R))
+    f = rng.uniform(0.0, 1.0, (C, R))
+    cos_o = nodes[j] + f * (nodes[j + 1] - nodes[j])
+    phi = rng.uniform(-np.pi, np.pi, (C, R))
+    want = np.zeros((C, R, 2, 3))
+    for c in range(C):
+        for r in range(R):
+            g = (1 - f[c, r]) * G[c, :, j[c, r]] + f[c, r] * G[c, :, j[c, r] + 1]        # (modes, 2, 3)
+            want[c, r] = g[0].real + sum(2 * (g[m].real * np.cos(m * phi[c, r]) - g[m].imag * np.sin(m * phi[c, r]))
+                                         for m in range(1, modes))
+    got = layer.radiance_at(G, cos_o, phi)
+    assert got.shape == (C, R, 2, 3)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
