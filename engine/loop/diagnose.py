@@ -1040,12 +1040,13 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict 
 
     def blocks_ok(fit):
         # the data's block tests, the readings' moved by the same draw as the whole χ²
-        ok = np.full(BOOTSTRAP_SAMPLES, _tile_consistent(fit, ctest.get("spectral_noise_percent")))
+        k_s = _spectral_parameters(fit)
+        ok = np.full(BOOTSTRAP_SAMPLES, _tile_consistent(fit, ctest.get("spectral_noise_percent"), k_s))
         if fit.lux_pred is None or not ctest.get("noise_percent"):
             return ok
         zx = fit.residual_percent / noise.percent
         dk = zx - z_w
-        k = fit.n_params - _spectral_parameters(fit)
+        k = fit.n_params - k_s
         return ok & readings_consistent(float(zx @ zx) + 2.0 * (eps @ dk), dk.mean() + eps.mean(axis=1), n, k,
                                         bool(ctest.get("level_test")))
 

@@ -1486,6 +1486,8 @@ class _AgedProblem(_ReshapedProblem):
         fps = LampSpectrumShiftEffect.fit_parameters
         init = LampSpectrumShiftEffect.fit_initial
         self._names = tuple(names)
+        # the parameters left out of the fit stay at the effect's own defaults (no reshaping)
+        self._held = {n: float(LampSpectrumShiftEffect.Params.model_fields[n].default) for n in fps}
         free = [FreeParameter(f"effect.{LampAgeingHypothesis.effect}.{n}", tuple(fps[n]), float(init.get(n, 0.0)))
                 for n in self._names]
         super().__init__(base, fit, free)
@@ -1493,7 +1495,7 @@ class _AgedProblem(_ReshapedProblem):
     def factors(self, values_nl) -> np.ndarray:
         from lbscene.engine.light.effects.builtin.lamp_spectrum_shift import aged_spectrum_1nm
 
-        v = {"shift_nm": 0.0, "tilt": 0.0, "curvature": 0.0, **dict(zip(self._names, (float(x) for x in values_nl)))}
+        v = {**self._held, **dict(zip(self._names, (float(x) for x in values_nl)))}
         shift, tilt, curvature = v["shift_nm"], v["tilt"], v["curvature"]
         out = np.ones_like(self._S)
         for k, S in enumerate(self._S):
