@@ -75,6 +75,8 @@ __all__ = [
     "diffuser_rect",
     "diffuser_fraction",
     "diffuser_transmittance_1nm",
+    "fitted_plate",
+    "plate_as_fitted",
     "is_rough",
     "plate_slab",
     "specular_plate",
@@ -130,6 +132,55 @@ def diffuser_transmittance_1nm(ctx, p) -> np.ndarray:
         t = ctx.cache[key] = np.clip(ctx.ir.diffuser.transmittance.array_1nm * p.transmittance_scale,
                                      0.0, 1.0)
     return t
+
+
+def fitted_plate(ir, transmittance_scale: float = 1.0, diffuse_fraction: float | None = None):
+    """The booth ``ir`` with its plate as the diffuser effect's parameters make it: the declared
+    transmittance times ``transmittance_scale`` (clipped to [0, 1]) and, for an opal
+    (``lambertian``) plate, the diffuse fraction ``diffuse_fraction`` where given.
+
+    The plate functions of this module read the plate from the booth: an opal plate's optical
+    depth (:func:`opal_depth`) and the asymmetry of its layer (:func:`opal_plate_layer`) follow
+    from its declared total and diffuse fraction.  A fit that varies either (the diagnosis' plate
+    hypothesis fits both) hands them this booth, so that the plate's angular law, its
+    reflectance and its transfer between faces move with its level, everywhere the plate is
+    read: the lamps' light through it and the inter-reflection alike.  ``ir`` itself when
+    nothing changes.
+
+    Examples
+    --------
+    >>> from lbscene.engine.scene.compile import compile_booth
+    >>> ir = compile_booth("tests/data/validation/opal-grey")          # doctest: +SKIP
+    >>> fitted_plate(ir, 0.5).diffuser.transmittance.array_1nm[0]      # doctest: +SKIP
+    0.3
+    """
+    d = ir.diffuser
+    if d is None:
+        return ir
+    upd = {}
+    if transmittance_scale != 1.0:
+        from lbscene.engine.scene.ir import IRSpectrum
+
+        T = np.clip(d.transmittance.array_1nm * float(transmittance_scale), 0.0, 1.0)
+        upd["transmittance"] = IRSpectrum.from_1nm(T, ir.grid)
+    sc = d.scattering
+    if diffuse_fraction is not None and sc.get("type") == "lambertian" and \
+            float(diffuse_fraction) != float(sc.get("diffuse_fraction", 0.0)):
+        upd["scattering"] = {**sc, "diffuse_fraction": float(diffuse_fraction)}
+    return ir.model_copy(update={"diffuser": d.model_copy(update=upd)}) if upd else ir
+
+
+def plate_as_fitted(ctx, p):
+    """:func:`fitted_plate` of the forward context's booth at the diffuser effect's parameters
+    ``p`` (``ctx.ir`` when ``p`` is None), kept in the context's cache."""
+    if p is None or ctx.ir.diffuser is None:
+        return ctx.ir
+    key = (float(p.transmittance_scale), None if p.diffuse_fraction is None else float(p.diffuse_fraction))
+    store = ctx.cache.setdefault("_fitted_plate", {})
+    hit = store.get(key)
+    if hit is None or hit[0] is not ctx.ir:
+        hit = store[key] = (ctx.ir, fitted_plate(ctx.ir, *key))
+    return hit[1]
 
 
 def is_rough(ir) -> bool:
@@ -440,7 +491,9 @@ def opal_regular_relative(cos_i, ior: float, tau: float) -> np.ndarray:
         ct = np.maximum(_cos_t(cc, ior), 1e-9)
         F = interface_fresnel(cc, ior)
         e = np.exp(-tau / ct)
-        return (1.0 - F) ** 2 * e / (1.0 - F * F * e * e)
+        # at grazing incidence on a layer of no depth (F = e = 1) the limit (1 - F)/(1 + F) is 0
+        den = 1.0 - F * F * e * e
+        return np.divide((1.0 - F) ** 2 * e, den, out=np.zeros_like(den), where=den > 0)
 
     return reg(c) / reg(np.ones(1))[0]
 

@@ -623,6 +623,11 @@ class RadiosityTransport:
 
         self._mirror = has_plate and specular_plate(ir, ctx.params("diffuser"))
         plate = has_plate and not self._mirror
+        # the plate as the diffuser effect's parameters make it (a fitted diffuse fraction or
+        # transmittance moves an opal plate's layer: its reflectance, its transfer between faces)
+        from .plates import plate_as_fitted
+
+        self.plate_ir = plate_as_fitted(ctx, ctx.params("diffuser")) if has_plate else ir
         # the lamps' mirrors block the surfaces' mutual views and reflect their light (images)
         self.mirrors = transport_mirrors(self._transport_model())
         mirror_key = _body_signature([(m.owner, m.face) for m in self.mirrors])
@@ -657,7 +662,7 @@ class RadiosityTransport:
             from .plates import diffuser_transmittance_1nm, plate_hemispherical_reflectance
 
             T_bands = ir.grid.integrate(diffuser_transmittance_1nm(ctx, ctx.params("diffuser")))
-            plate_R = plate_hemispherical_reflectance(ir, T_bands)                      # (B,)
+            plate_R = plate_hemispherical_reflectance(self.plate_ir, T_bands)           # (B,)
         # a surface_reflectance effect scales the ceiling's, walls' or floor's reflectance
         sr = ctx.params("surface_reflectance") if "surface_reflectance" in ctx.effects else None
         rk = key + ("rho", p.reflectance_scale, None if plate_R is None else tuple(np.round(plate_R, 9))) + (
@@ -733,9 +738,9 @@ class RadiosityTransport:
         if self._cross_pp is None:
             from .geometry import segment_hits_rectangle
 
-            ir = self.ctx.ir
-            ck = self._patch_key + ("plate_cross", ir.diffuser.ior,
-                                    json.dumps(ir.diffuser.scattering, sort_keys=True))
+            d = self.plate_ir.diffuser
+            ck = self._patch_key + ("plate_cross", d.ior, json.dumps(d.scattering, sort_keys=True),
+                                    float(np.mean(d.transmittance.array_1nm)))
             if ck not in self.ctx.cache:
                 c = self.patches.centres
                 self.ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
@@ -902,7 +907,7 @@ class RadiosityTransport:
         dp = self.ctx.params("diffuser")
         specular = specular_plate(ir, dp)
         T = float(np.mean(ir.grid.integrate(diffuser_transmittance_1nm(self.ctx, dp))))
-        Rh = float(plate_hemispherical_reflectance(ir, np.array([T]))[0])
+        Rh = float(plate_hemispherical_reflectance(self.plate_ir, np.array([T]))[0])
         z_top = plate_top_mm(ir)
         lo = np.array([d.centre_mm[0] - d.size_mm[0] / 2, d.centre_mm[1] - d.size_mm[1] / 2])
         hi = np.array([d.centre_mm[0] + d.size_mm[0] / 2, d.centre_mm[1] + d.size_mm[1] / 2])
@@ -919,7 +924,7 @@ class RadiosityTransport:
             else:
                 d_ = es.points_mm[None, :, :] - P[on][:, None, :]
                 cos_i = np.clip(d_[..., 2] / np.maximum(np.linalg.norm(d_, axis=-1), 1e-12), 0.0, 1.0)
-                w[on] = plate_reflectance(ir, cos_i, np.array([T]))[..., 0] / Rh
+                w[on] = plate_reflectance(self.plate_ir, cos_i, np.array([T]))[..., 0] / Rh
             return w if f is None else f * w
 
         return factor
@@ -1209,7 +1214,8 @@ class RadiosityTransport:
     def _plate_line_factor(self, A, B, cross) -> np.ndarray:
         """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
         else minus the plate's directional transmittance at the line's incidence relative to
-        normal incidence (negative marks a crossing: :meth:`_F_band` multiplies those by the
+        normal incidence (the sign bit marks a crossing, −0 where nothing crosses along lines:
+        :meth:`_F_band` multiplies those by the
         declared total transmittance); an opal plate's regular part only
         (:func:`~lbscene.engine.light.plates.plate_line_relative`: its scattered part goes from
         face to face, :meth:`_plate_coupling`)."""
@@ -1217,11 +1223,13 @@ class RadiosityTransport:
 
         d = A[:, None, :] - B[None, :, :]
         cos = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-        return np.where(cross, -plate_line_relative(self.ctx.ir, cos), 1.0)
+        return np.where(cross, -plate_line_relative(self.plate_ir, cos), 1.0)
 
     def _crossed(self, M, S, T):
-        """``M`` with the entries whose lines cross the plate (``S`` < 0) times ``T·|S|``."""
-        return np.where(S < 0, M * (-S) * T, M)
+        """``M`` with the entries whose lines cross the plate (``S`` negative or −0) times ``T·|S|``."""
+        # the sign bit marks a crossing: a line the plate lets nothing through (an opal plate with
+        # no regular part) is −0, not a line that misses it
+        return np.where(np.signbit(S), M * (-S) * T, M)
 
     def _F_crossed(self, T):
         """The form factors past the plate at transmittance ``T`` (:meth:`_crossed`), the last
@@ -1256,7 +1264,7 @@ class RadiosityTransport:
         (:func:`~lbscene.engine.light.plates.plate_scatters_diffusely`)."""
         from .plates import plate_scatters_diffusely
 
-        if self._plate_faces is None or not plate_scatters_diffusely(self.ctx.ir):
+        if self._plate_faces is None or not plate_scatters_diffusely(self.plate_ir):
             return None
         if getattr(self, "_pairs", None) is None:
             idx = np.nonzero(self._plate_faces)[0]
@@ -1274,7 +1282,7 @@ class RadiosityTransport:
         over what it reflects (the plate patches' reflectance at ``T``)."""
         from .plates import plate_diffuse_transfer, plate_hemispherical_reflectance
 
-        ir = self.ctx.ir
+        ir = self.plate_ir
         Rh = float(plate_hemispherical_reflectance(ir, np.array([float(T)]))[0])
         return plate_diffuse_transfer(ir) * float(T) / max(Rh, 1e-9)
 
@@ -1312,12 +1320,11 @@ class RadiosityTransport:
             return 0.0
         from .plates import opal_plate_layer, plate_diffuse_transfer
 
-        ir = self.ctx.ir
+        ir = self.plate_ir
         tau = plate_diffuse_transfer(ir) * float(T)
         if tau <= 0:
             return 0.0
-        # the declared plate's layer: the inter-reflection reads the plate as declared (the diffuser
-        # effect's diffuse_fraction override moves the lamps' light through the plate only)
+        # the plate's layer as the diffuser effect's parameters make it (plates.fitted_plate)
         layer = opal_plate_layer(ir)
         c = self.patches.centres
         F = self._F_crossed(T)
@@ -1398,7 +1405,7 @@ class RadiosityTransport:
         out = np.zeros_like(F_img)
         nz = F_img > 0
         if nz.any():
-            out[nz] = F_img[nz] * plate_reflectance(self.ctx.ir, cos[nz], np.array([float(T)]))[:, 0]
+            out[nz] = F_img[nz] * plate_reflectance(self.plate_ir, cos[nz], np.array([float(T)]))[:, 0]
         return out
 
     # ------------------------------------------------------------------ receivers

@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from lbscene.engine.light.plates import opal_depth, opal_regular_relative
+from lbscene.engine.light.plates import fitted_plate, opal_depth, opal_regular_relative
 
 __all__ = ["ReferenceEngine", "TRUTH_PROVIDERS", "register_truth_provider", "get_truth_provider"]
 
@@ -485,8 +485,14 @@ class ReferenceEngine:
             return slab.transmittance(cos_i) / float(slab.transmittance(np.ones(1))[0])
         if d.scattering.get("type") == "lambertian":
             # an opal plate's unscattered light: Beer–Lambert along the refracted path
-            return opal_regular_relative(cos_i, d.ior, opal_depth(self.ir, self._diffuse_fraction()))
+            return opal_regular_relative(cos_i, d.ior, opal_depth(self._plate_ir(), self._diffuse_fraction()))
         return _fresnel_plate(cos_i, d.ior) / t0
+
+    def _plate_ir(self):
+        """The booth with its plate as the diffuser effect's parameters make it
+        (:func:`~lbscene.engine.light.plates.fitted_plate`)."""
+        diff = self.fx["diffuser"]
+        return fitted_plate(self.ir, diff.transmittance_scale, diff.diffuse_fraction)
 
     def _diffuse_fraction(self):
         diff = self.fx["diffuser"]
@@ -508,7 +514,7 @@ class ReferenceEngine:
 
         d = self.ir.diffuser
         fd = self._diffuse_fraction()
-        layer = opal_plate_layer(self.ir, fd)
+        layer = opal_plate_layer(self._plate_ir(), fd)
         key = "_plate"
         if getattr(self, key, None) is None:
             k = int(np.sqrt(self.plate_samples))

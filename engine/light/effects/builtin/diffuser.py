@@ -22,6 +22,7 @@ patches of the plate's hemispherical reflectance.  The plate itself
 
 from __future__ import annotations
 
+import hashlib
 import math
 from typing import Literal
 
@@ -32,7 +33,7 @@ from lbscene.engine.light.effects.physics import (DirectionalSource, PathChannel
                                                   PhysicalEffect)
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
 from lbscene.engine.light.plates import (absorption_squared, diffuser_fraction, diffuser_rect,
-                                         diffuser_transmittance_1nm, is_rough,
+                                         diffuser_transmittance_1nm, is_rough, plate_as_fitted,
                                          plate_lobe_footprint_mm, plate_reflectance, plate_slab, plate_top_mm,
                                          reference_transmittance, slab_crossing, slab_relative,
                                          specular_plate)
@@ -232,12 +233,13 @@ class DiffuserEffect(PhysicalEffect):
             # the path refracted through the plate's thickness: its incidence and the spread of
             # its ray tube (slab_crossing) times the plate's law at that incidence
             cos_i, spread = slab_crossing(es.points_mm, rx, d.z_mm, thick, d.ior)
-            return spread * slab_relative(ir, cos_i, fd)
+            return spread * slab_relative(plate_as_fitted(ctx, p), cos_i, fd)
 
         rough = float(d.scattering.get("roughness", -1.0)) if is_rough(ir) else -1.0
         # an opal plate's regular part depends on its optical depth, i.e. on the diffuse fraction
-        opal = fd if d.scattering.get("type") == "lambertian" else -1.0
-        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [d.ior, rough, opal, d.z_mm, thick]),
+        # and the total it is a part of
+        opal = [fd, float(p.transmittance_scale)] if d.scattering.get("type") == "lambertian" else [-1.0, -1.0]
+        ang = ctx.memo("diffuser_fresnel", (es.points_mm, rx, [d.ior, rough, *opal, d.z_mm, thick]),
                        angular)
         through = hit * (1.0 - fd) * ang
         return [PathChannel(through, "diffuser", diffuser_transmittance_1nm(ctx, p)),
@@ -281,7 +283,8 @@ class DiffuserEffect(PhysicalEffect):
         """The light arriving on the plate's cells (``cell_size_mm``, on its top face:
         :meth:`_cells`), per emitter point, in
         chunks of cells: yields ``(idx, light)`` for cells ``idx`` (sampled at ``k × k``
-        sub-points: ``subpoints``, or by distance, :meth:`_cell_subpoints`), ``light`` mapping each term's key to
+        sub-points: ``subpoints``, or by distance, :meth:`_cell_subpoints`), ``light`` mapping each term (its group,
+        key and spectrum) to
         ``(term, E, cos_i, phi, E_s)``: ``E`` (n, ·) the irradiance of each emitter point at each
         sub-point times its area weight (their sum over a cell is the cell's mean irradiance),
         ``cos_i`` its incidence cosine and ``phi`` the azimuth of its propagation (away from the
@@ -316,12 +319,15 @@ class DiffuserEffect(PhysicalEffect):
                     u = pl.from_dir
                     c = np.clip(u[:, :, 2], 0.0, 1.0).reshape(n, -1)
                     ph = np.arctan2(-u[:, :, 1], -u[:, :, 0]).reshape(n, -1)
-                    if pl.term.key in merged:
-                        _, E0, c0, ph0, Es0 = merged[pl.term.key]
+                    # one term per group and spectrum: lamps of different groups (each scaled
+                    # on its own when their outputs are fitted) or spectra stay apart
+                    mk = (pl.term.group, pl.term.key, _spectrum_digest(pl.term.spectrum_1nm))
+                    if mk in merged:
+                        _, E0, c0, ph0, Es0 = merged[mk]
                         E, c, ph = (np.concatenate([E0, E], 1), np.concatenate([c0, c], 1),
                                     np.concatenate([ph0, ph], 1))
                         Es = Es0 + Es
-                    merged[pl.term.key] = (pl.term, E, c, ph, Es)
+                    merged[mk] = (pl.term, E, c, ph, Es)
                 yield idx, merged, k
 
     @classmethod
@@ -478,7 +484,7 @@ class DiffuserEffect(PhysicalEffect):
         from lbscene.engine.light.plates import opal_plate_layer
 
         ir = ctx.ir
-        layer = opal_plate_layer(ir, fd)
+        layer = opal_plate_layer(plate_as_fitted(ctx, p), fd)
         hit = cls._opal_histograms(ctx, p, direct, layer)
         if hit is None:
             return None
@@ -542,6 +548,11 @@ def _subcells(polys: np.ndarray, split: int) -> np.ndarray:
     return np.stack(corners, axis=2)
 
 
+def _spectrum_digest(spectrum) -> bytes:
+    """A term spectrum's identity (lamps of one group merge only where their spectra are equal)."""
+    return hashlib.sha1(np.ascontiguousarray(spectrum, float).tobytes()).digest()
+
+
 def _image_channels(ctx, p, es, rx):
     """Path factors of a lamp's image in the plate's top face: its light leaves through the
     plate's rectangle (a receiver below the plate gets none) and past the lamp's body (light
@@ -568,4 +579,4 @@ def _image_channels(ctx, p, es, rx):
         return [PathChannel(f * r_top),
                 PathChannel(f * (slab.reflectance(cos_i, 1.0) - r_top), "plate-internal-reflection", a2)]
     # a clear plate's reflectance does not depend on its transmittance (its absorption neglected)
-    return [PathChannel(f * plate_reflectance(ir, cos_i, np.ones(1))[..., 0])]
+    return [PathChannel(f * plate_reflectance(plate_as_fitted(ctx, p), cos_i, np.ones(1))[..., 0])]
