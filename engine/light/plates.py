@@ -159,10 +159,9 @@ def fitted_plate(ir, transmittance_scale: float = 1.0, diffuse_fraction: float |
         return ir
     upd = {}
     if transmittance_scale != 1.0:
-        from lbscene.engine.scene.ir import IRSpectrum
-
+        # a spectrum of the declaration's own type (the scene layer's, above this one)
         T = np.clip(d.transmittance.array_1nm * float(transmittance_scale), 0.0, 1.0)
-        upd["transmittance"] = IRSpectrum.from_1nm(T, ir.grid)
+        upd["transmittance"] = type(d.transmittance).from_1nm(T, ir.grid)
     sc = d.scattering
     if diffuse_fraction is not None and sc.get("type") == "lambertian" and \
             float(diffuse_fraction) != float(sc.get("diffuse_fraction", 0.0)):

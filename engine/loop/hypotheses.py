@@ -175,6 +175,11 @@ OPENING_SCALES = (0.8, 1.0, 1.25, 1.55, 1.9)
 #: GGX roughness of a hypothesised rough glass plate, profiled, and its refractive index
 PLATE_ROUGHNESSES = (0.05, 0.1, 0.2, 0.35, 0.5)
 ROUGH_PLATE_IOR = 1.5
+#: a hypothesised opal plate's faces, profiled: polished, at the index of its acrylic, or
+#: neither reflecting nor refracting (index 1: a matte or index-matched face, the scattering
+#: layer's light leaving as it arrives at the face); they set the angle its scattered light
+#: leaves at for the same declared total and diffuse fraction
+OPAL_PLATE_IOR = 1.49
 #: a rough plate's fitted Lambertian part below this is written as none
 ROUGH_DIFFUSE_MIN = 0.02
 #: Δχ² between opal and rough glass below which the plate's type is said not to be identified
@@ -535,16 +540,16 @@ def _pm(value: float, se: float | None, unit: str = "") -> str:
     return f"   # ± {_g(se)}{unit} (profiled)"
 
 
-def _choice_note(fit, hid: str, name: str, chosen: str, both: str, what: str) -> str:
+def _choice_note(fit, hid: str, name: str, chosen: str, both: str, what: str, verb: str = "fits") -> str:
     """The YAML comment's clause on a categorical profiled property ``name`` of hypothesis
-    ``hid`` (two choices): ``chosen`` fits better by Δχ², or ``both`` fit alike and the ``what``
-    is not identified (Δχ² under :data:`TYPE_DCHI2`); '' when it was not profiled."""
+    ``hid`` (two choices): ``chosen`` fits (``verb``) better by Δχ², or ``both`` fit alike and the
+    ``what`` is not identified (Δχ² under :data:`TYPE_DCHI2`); '' when it was not profiled."""
     choice = (getattr(fit, "hypothesis_data", None) or {}).get("choices", {}).get(hid, {}).get(name)
     if not choice or len(choice) != 2:
         return ""
     dchi = abs(choice[0.0] - choice[1.0])
     if dchi >= TYPE_DCHI2:
-        return f"; {chosen} fits better by Δχ² = {dchi:.3g}"
+        return f"; {chosen} {verb} better by Δχ² = {dchi:.3g}"
     return f"; {both} fit alike (Δχ² = {dchi:.2g}): the {what} is not identified"
 
 
@@ -698,26 +703,28 @@ class DiffuserPlateHypothesis(PlateHypothesis):
                        size_mm=(x1 - x0 - 2 * MARGIN_MM, y1 - y0 - 2 * MARGIN_MM),
                        centre_mm=((x0 + x1) / 2, (y0 + y1) / 2), thickness_mm=3.0,
                        transmittance=IRSpectrum.from_1nm(np.ones(_WL.size), ir.grid),
-                       scattering={"type": "lambertian", "diffuse_fraction": 0.5}, ior=1.49)
-        free = [FreeParameter("effect.diffuser.diffuse_fraction", (0.0, 1.0), 0.5)]
-        groups = {lp.group for lp in _lamps_on(ir, lighting)}
-        if groups and groups <= set(known_groups or ()):
-            # with every output known the plate's transmittance is a level the data can see
-            free.append(FreeParameter("effect.diffuser.transmittance_scale", (0.1, 1.0), 0.8))
+                       scattering={"type": "lambertian", "diffuse_fraction": 0.5}, ior=OPAL_PLATE_IOR)
+        # the transmittance is fitted whether the lamps' output is known or not: with it known it
+        # is a level the data see; with it fitted the level is the output's, but an opal plate's
+        # total still sets how its layer scatters and how much it reflects (a plate declared to
+        # transmit everything can do neither), which the shape of the light shows
+        free = [FreeParameter("effect.diffuser.diffuse_fraction", (0.0, 1.0), 0.5),
+                FreeParameter("effect.diffuser.transmittance_scale", (0.1, 1.0), 0.8)]
         return ir.model_copy(update={"diffuser": d}), {"diffuser": {}}, free
 
     @classmethod
     def geometry(cls, ir, lighting):
         out = super().geometry(ir, lighting)
-        # the plate's type: opal (Lambertian part, fitted fraction) or rough glass (GGX
-        # roughness, profiled); first, as it decides what the other properties mean
+        # the plate's type: opal (Lambertian part, fitted fraction; its faces polished or not) or
+        # rough glass (GGX roughness, profiled); first, as it decides what the other properties mean
         return [GeometryParameter("rough", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
-                GeometryParameter("roughness", PLATE_ROUGHNESSES, 0.2, (PLATE_ROUGHNESSES[0], PLATE_ROUGHNESSES[-1]))
-                ] + out
+                GeometryParameter("roughness", PLATE_ROUGHNESSES, 0.2, (PLATE_ROUGHNESSES[0], PLATE_ROUGHNESSES[-1])),
+                GeometryParameter("matte_faces", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True)] + out
 
     @classmethod
     def profiled(cls, name, values):
-        return name != "roughness" or values.get("rough", 0.0) >= 0.5
+        rough = values.get("rough", 0.0) >= 0.5
+        return rough if name == "roughness" else not rough if name == "matte_faces" else True
 
     @classmethod
     def regeometry(cls, ir, lighting, values):
@@ -725,6 +732,8 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         if values.get("rough", 0.0) >= 0.5:
             upd["scattering"] = {"type": "roughness", "roughness": float(values.get("roughness", 0.2))}
             upd["ior"] = ROUGH_PLATE_IOR
+        else:
+            upd["ior"] = 1.0 if values.get("matte_faces", 0.0) >= 0.5 else OPAL_PLATE_IOR
         return ir.model_copy(update={"diffuser": ir.diffuser.model_copy(update=upd)})
 
     @classmethod
@@ -744,18 +753,25 @@ class DiffuserPlateHypothesis(PlateHypothesis):
         t = fit.values.get("effect.diffuser.transmittance_scale")
         kind = "rough glass" if rough else "opal"
         why = _choice_note(fit, cls.id, "rough", kind, "opal and rough glass", "type")
+        faces = "" if rough else _choice_note(
+            fit, cls.id, "matte_faces", "matte faces" if d.ior == 1.0 else "polished faces",
+            "polished and matte faces", "faces' finish", verb="fit")
         lines = [f"diffuser:   # hypothesis: {cls.summary}, {kind}; extent assumed, height and "
                  f"scattering fitted{why}",
                  f"  z_mm: {_g(d.z_mm)}" + _pm(d.z_mm, gse, " mm"), f"  size_mm: [{_g(d.size_mm[0])}, {_g(d.size_mm[1])}]",
                  f"  centre_mm: [{_g(d.centre_mm[0])}, {_g(d.centre_mm[1])}]",
-                 f"  thickness_mm: {_g(d.thickness_mm)}", f"  ior: {_g(d.ior)}"]
+                 f"  thickness_mm: {_g(d.thickness_mm)}",
+                 f"  ior: {_g(d.ior)}" + (f"   # {faces[2:]}" if faces else "")]
         if t is None:
-            lines.append("  transmittance: {type: constant, value: 1.0}   # not measurable with the "
-                         "lamp output fitted: put the datasheet value")
+            lines.append("  transmittance: {type: constant, value: 1.0}   # not fitted: put the datasheet value")
         else:
             st = fit.stderr.get("effect.diffuser.transmittance_scale")
+            # with the lamps' output fitted only the shape of the plate's light pins it
+            shape_only = any(k.startswith("group.") for k in fit.values)
+            note = ", from the shape of the light (the lamps' output fitted): the datasheet's is better" \
+                if shape_only else ""
             lines.append(f"  transmittance: {{type: constant, value: {_g(t)}}}" +
-                         (f"   # ± {_g(st)}" if st else ""))
+                         (f"   # ± {_g(st)}{note}" if st else f"   # {note[2:]}" if note else ""))
         if rough:
             r, rse = _geo(fit, cls.id, "roughness", float(d.scattering["roughness"]))
             lines.append(f"  scattering: {{type: roughness, roughness: {_g(r)}}}" + _pm(r, rse))

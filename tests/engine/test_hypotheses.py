@@ -268,7 +268,7 @@ def test_a_rough_plate_at_a_profiled_height_is_written_as_rough_glass(tmp_path):
     ir = compile_booth(src / "booth.yaml")
     aug = DiffuserPlateHypothesis.augment(ir, "L", [])[0]
     names = [g.name for g in DiffuserPlateHypothesis.geometry(aug, "L")]
-    assert names == ["rough", "roughness", "gap_mm"]
+    assert names == ["rough", "roughness", "matte_faces", "gap_mm"]
     values = {"rough": 1.0, "roughness": 0.3, "gap_mm": 45.0}
     rough = DiffuserPlateHypothesis.regeometry(aug, "L", values)
     fit = _fake_fit({"effect.diffuser.diffuse_fraction": 0.0})
@@ -285,6 +285,51 @@ def test_a_rough_plate_at_a_profiled_height_is_written_as_rough_glass(tmp_path):
     d = compile_booth(f).diffuser
     assert d.scattering == {"type": "roughness", "roughness": 0.3}
     assert d.z_mm == pytest.approx(620 - 13 - 45)
+
+
+def test_an_opal_plate_with_matte_faces_is_written_at_index_1(tmp_path):
+    """An opal plate whose faces fit better without a Fresnel boundary is written with ior 1 and
+    says by how much; rough glass keeps its own index, and its faces are not profiled."""
+    from lbscene.engine.scene.compile import compile_booth
+
+    src = DATA / "validation" / "walls-05"
+    ir = compile_booth(src / "booth.yaml")
+    aug = DiffuserPlateHypothesis.augment(ir, "L", ["tube_front", "tube_rear"])[0]
+    assert aug.diffuser.ior == 1.49
+    matte = DiffuserPlateHypothesis.regeometry(aug, "L", {"rough": 0.0, "matte_faces": 1.0, "gap_mm": 45.0})
+    assert matte.diffuser.ior == 1.0 and matte.diffuser.scattering["type"] == "lambertian"
+    polished = DiffuserPlateHypothesis.regeometry(aug, "L", {"rough": 0.0, "matte_faces": 0.0})
+    assert polished.diffuser.ior == 1.49
+    glass = DiffuserPlateHypothesis.regeometry(aug, "L", {"rough": 1.0, "matte_faces": 1.0})
+    assert glass.diffuser.ior == 1.5
+    assert not DiffuserPlateHypothesis.profiled("matte_faces", {"rough": 1.0})
+    assert DiffuserPlateHypothesis.profiled("matte_faces", {"rough": 0.0})
+    assert not DiffuserPlateHypothesis.profiled("roughness", {"rough": 0.0})
+    fit = _fake_fit({"effect.diffuser.diffuse_fraction": 0.9, "effect.diffuser.transmittance_scale": 0.62})
+    fit.hypothesis_data = {"geometry": {"diffuser_plate": {"rough": (0.0, None), "matte_faces": (1.0, None),
+                                                           "gap_mm": (45.0, 3.0)}},
+                           "choices": {"diffuser_plate": {"rough": {0.0: 60.0, 1.0: 140.0},
+                                                          "matte_faces": {0.0: 110.0, 1.0: 60.0}}}}
+    text = DiffuserPlateHypothesis.hardware_yaml(matte, fit)
+    assert "  ior: 1   # matte faces fit better by Δχ² = 50" in text
+    assert "opal fits better by Δχ² = 80" in text
+    booth = tmp_path / "b"
+    shutil.copytree(src, booth)
+    f = booth / "booth.yaml"
+    f.write_text(paste_hardware(f.read_text(), text + "effects:\n  interreflection: {}\n  diffuser: {}\n"))
+    d = compile_booth(f).diffuser
+    assert d.ior == 1.0 and d.scattering["diffuse_fraction"] == 0.9
+    assert np.allclose(d.transmittance.array_1nm, 0.62)
+    # the plate's transmittance is fitted with the lamps' output fitted too (an opal plate
+    # declared to transmit everything neither scatters nor reflects as one does): the shape of
+    # the light pins it, and the comment says so
+    free = DiffuserPlateHypothesis.augment(ir, "L", [])[2]
+    assert {fp.target for fp in free} == {"effect.diffuser.diffuse_fraction", "effect.diffuser.transmittance_scale"}
+    fit.values["group.tube_front.intensity_scale"] = 1.1
+    fit.stderr = {"effect.diffuser.transmittance_scale": 0.07}
+    text = DiffuserPlateHypothesis.hardware_yaml(matte, fit)
+    assert ("  transmittance: {type: constant, value: 0.62}   # ± 0.07, from the shape of the light "
+            "(the lamps' output fitted): the datasheet's is better") in text
 
 
 def test_the_rough_plate_hypothesis_grid_is_shipped():
