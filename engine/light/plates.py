@@ -151,8 +151,10 @@ def fitted_plate(ir, transmittance_scale: float = 1.0, diffuse_fraction: float |
     --------
     >>> from lbscene.engine.scene.compile import compile_booth
     >>> ir = compile_booth("tests/data/validation/opal-grey")          # doctest: +SKIP
+    >>> ir.diffuser.transmittance.array_1nm[0]                          # doctest: +SKIP
+    0.65
     >>> fitted_plate(ir, 0.5).diffuser.transmittance.array_1nm[0]      # doctest: +SKIP
-    0.3
+    0.325
     """
     d = ir.diffuser
     if d is None:
