@@ -41,7 +41,7 @@ from typing import Callable
 
 import numpy as np
 
-from lbscene.engine.light.plates import fitted_plate, opal_depth, opal_regular_relative
+from lbscene.engine.light.plates import diffuser_fraction, fitted_plate, opal_depth, opal_regular_relative
 
 __all__ = ["ReferenceEngine", "TRUTH_PROVIDERS", "register_truth_provider", "get_truth_provider"]
 
@@ -490,16 +490,15 @@ class ReferenceEngine:
 
     def _plate_ir(self):
         """The booth with its plate as the diffuser effect's parameters make it
-        (:func:`~lbscene.engine.light.plates.fitted_plate`)."""
-        diff = self.fx["diffuser"]
-        return fitted_plate(self.ir, diff.transmittance_scale, diff.diffuse_fraction)
+        (:func:`~lbscene.engine.light.plates.fitted_plate`); made once (the parameters are the
+        engine's, fixed), not per chunk of receivers."""
+        if getattr(self, "_fitted_plate_ir", None) is None:
+            diff = self.fx["diffuser"]
+            self._fitted_plate_ir = fitted_plate(self.ir, diff.transmittance_scale, diff.diffuse_fraction)
+        return self._fitted_plate_ir
 
     def _diffuse_fraction(self):
-        diff = self.fx["diffuser"]
-        if diff.diffuse_fraction is not None:
-            return diff.diffuse_fraction
-        sc = self.ir.diffuser.scattering
-        return sc["diffuse_fraction"] if sc.get("type") == "lambertian" else 0.0
+        return diffuser_fraction(self.ir, self.fx["diffuser"])
 
     def _plate_light(self, P, N, meter, chunk=32):
         """Scattered light of the diffuser plate, Monte Carlo over the plate area: each sample
