@@ -24,7 +24,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
-__all__ = ["for_chunks", "worker_count", "MAX_WORKERS", "blas_single_thread"]
+__all__ = ["for_chunks", "worker_count", "MAX_WORKERS", "blas_single_thread", "map_forked", "process_count"]
 
 #: more threads than this buys nothing on the kernels here (memory-bound)
 MAX_WORKERS = 4
@@ -58,6 +58,53 @@ def for_chunks(work: Callable[[int, int], None], n: int, chunk: int) -> None:
         _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="lbscene")
     for f in [_POOL.submit(work, a, b) for a, b in ranges]:
         f.result()
+
+
+def process_count() -> int:
+    """Worker processes :func:`map_forked` uses: ``LBSCENE_PROCESSES`` when set (``1``: none),
+    else the cores this process may run on (at most :data:`MAX_WORKERS`)."""
+    raw = os.environ.get("LBSCENE_PROCESSES", "").strip()
+    if raw.isdigit() and int(raw) > 0:
+        return min(int(raw), 64)
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        n = os.cpu_count() or 1
+    return max(1, min(n, MAX_WORKERS))
+
+
+#: the work of the current :func:`map_forked` (read by the forked workers from their copy of
+#: this process' memory)
+_FORKED: tuple | None = None
+
+
+def _run_forked(i: int):
+    global _POOL
+    _POOL = None               # the parent's thread pool did not survive the fork
+    fn, items = _FORKED
+    return fn(items[i])
+
+
+def map_forked(fn: Callable, items: list) -> list:
+    """``[fn(x) for x in items]``, the items shared among :func:`process_count` processes forked
+    from this one.  Each worker starts as a copy of this process (its caches, closures, open
+    models: nothing of ``fn`` is pickled); only the results travel back, pickled.  Serial with
+    one worker or one item, or where processes cannot be forked (then exactly as the loop).
+    The results are in the items' order whatever the order the workers finish in."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    global _FORKED
+    items = list(items)
+    workers = min(process_count(), len(items))
+    if workers < 2 or "fork" not in multiprocessing.get_all_start_methods() or _FORKED is not None:
+        return [fn(x) for x in items]
+    _FORKED = (fn, items)
+    try:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as ex:
+            return list(ex.map(_run_forked, range(len(items))))
+    finally:
+        _FORKED = None
 
 
 _BLAS = None

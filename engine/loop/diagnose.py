@@ -769,16 +769,20 @@ def _refit(b: _Base, items: tuple[str, ...], rival: float | None = None) -> Susp
             # properties the forward model cannot vary (a plate's height, a mirror's distance):
             # the refit repeated on booths with other values (hypotheses.profile_geometry); in a
             # pair the hardware keeps the hypothesis' first guess
-            def solve_on(ir_v, start, m=m, new_eff=new_eff, free=free):
-                # started from the hypothesis refit's optimum; standard errors only for the
-                # point kept (profile_geometry adds them)
+            def problem_on(ir_v, start, m=m, new_eff=new_eff, free=free):
+                # started from the hypothesis refit's optimum
                 fr = [replace(fp, initial=float(np.clip(start.values.get(fp.target, fp.initial), *fp.bounds)))
                       for fp in free]
                 c_v = {key: b.cache.setdefault(key, {}) for key in SHARED_GEOMETRY_STORES}
-                p_v = FitProblem(replace(m, ir=ir_v), new_eff, fr, noise.percent, noise.spectral_percent, c_v,
-                                 tolerance=PROFILE_TOLERANCE)
+                return FitProblem(replace(m, ir=ir_v), new_eff, fr, noise.percent, noise.spectral_percent, c_v,
+                                  tolerance=PROFILE_TOLERANCE)
+
+            def solve_on(ir_v, start):
+                # standard errors only for the point kept (profile_geometry adds them)
+                p_v = problem_on(ir_v, start)
                 return p_v, p_v.solve(errors=False)
-            cur_ir, fit, prob, n_geo = profile_geometry(H, cur_ir, b.lighting, solve_on, fit, prob)
+            cur_ir, fit, prob, n_geo = profile_geometry(H, cur_ir, b.lighting, solve_on, fit, prob,
+                                                        problem_on=problem_on)
             k += n_geo
             n_params[HYPOTHESIS_PREFIX + H.id] = n_params.get(HYPOTHESIS_PREFIX + H.id, 0) + n_geo
     if cur_ir is not b.ir:

@@ -122,6 +122,8 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
+from lbscene.engine.files.parallel import map_forked
+
 from .fit import FitProblem, FitResult, FreeParameter, consistent_with_noise
 
 __all__ = [
@@ -299,7 +301,7 @@ def _mean_reflectance(ir, roles) -> float | None:
     return sum(a * r for a, r in w) / sum(a for a, _ in w)
 
 
-def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
+def profile_geometry(H, ir, lighting: str, solve_on, fit, problem, problem_on=None):
     """Fit ``H``'s :class:`GeometryParameter` s by profiling the refit over them.
 
     Parameters
@@ -315,6 +317,11 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
         shares).  The fit may be returned without its standard errors
         (``FitResult.errors_pending``): only the one kept needs them, and ``problem.add_errors``
         adds them.
+    problem_on : callable, optional
+        ``problem_on(ir, start) -> FitProblem``: the problem ``solve_on`` solves, unsolved.  With
+        it the refits of a profile's points run side by side in forked processes
+        (:func:`~lbscene.engine.files.parallel.map_forked`: each point's refit is the same,
+        started from ``fit`` whichever runs first) and the problem of each point is made here.
 
     Returns
     -------
@@ -344,6 +351,19 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
             seen[k] = (ir_v, *solve_on(ir_v, fit))
         return seen[k]
 
+    def prefetch(vs):
+        # the points a step of the profile compares, refitted side by side
+        todo = {}
+        for v in vs:
+            if key(v) not in seen:
+                todo.setdefault(key(v), v)
+        if problem_on is None or len(todo) < 2:
+            return
+        irs = [H.regeometry(ir, lighting, v) for v in todo.values()]
+        fits = map_forked(lambda ir_v: solve_on(ir_v, fit)[1], irs)
+        for k, ir_v, f in zip(todo, irs, fits):
+            seen[k] = (ir_v, problem_on(ir_v, fit), f)
+
     sig: dict[str, float | None] = {}
     choices: dict[str, dict[float, float]] = {}
     edge: set[str] = set()              # optimum at an end of its grid (one-sided uncertainty)
@@ -362,6 +382,7 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 # each choice at its own best value of the property it decides the meaning of
                 # (a mirror behind the lamps at its best distance against one above at its)
                 ys = sorted(set(partner.grid) | {values[partner.name]})
+                prefetch([{**values, p.name: float(x), partner.name: float(y)} for x in xs for y in ys])
                 best_y, chi = [], []
                 for x in xs:
                     c = [at({**values, p.name: float(x), partner.name: float(y)})[2].chi2 for y in ys]
@@ -370,7 +391,24 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
                 chi = np.array(chi)
                 j = int(np.argmin(chi))
                 values[partner.name] = best_y[j]
+            elif p.categorical:
+                # each choice at its best of the choices only it has (an opal plate at its better
+                # faces against a rough one): the faces kept from another choice decided the type
+                # by a χ² unit where the better faces fitted by 30
+                prefetch([{**values, p.name: float(x), **sv} for x in xs
+                          for sv in _own_choices(H, params, p, xs, {**values, p.name: float(x)})])
+                chi, subs = [], []
+                for x in xs:
+                    v = {**values, p.name: float(x)}
+                    c = [(at({**v, **sv})[2].chi2, sv) for sv in _own_choices(H, params, p, xs, v)]
+                    c_min, sv = min(c, key=lambda t: t[0])
+                    chi.append(c_min)
+                    subs.append(sv)
+                chi = np.array(chi)
+                j = int(np.argmin(chi))
+                values.update(subs[j])
             else:
+                prefetch([{**values, p.name: float(x)} for x in xs])
                 chi = np.array([at({**values, p.name: float(x)})[2].chi2 for x in xs])
                 j = int(np.argmin(chi))
             if p.categorical:
@@ -429,6 +467,19 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem):
     hd["joint"] = {**hd.get("joint", {}), H.id: {f"{a}|{b}": j for (a, b), j in joint.items()}}
     fit_b.hypothesis_data = hd
     return ir_b, fit_b, prob_b, pinned
+
+
+def _own_choices(H, params, p, xs, values) -> list[dict[str, float]]:
+    """The combinations of the categorical properties that matter at ``values`` but not at every
+    choice ``xs`` of ``p`` (a plate's faces matter for opal, not for rough glass): ``[{}]`` for
+    none."""
+    own = [q for q in params if q is not p and q.categorical
+           and getattr(H, "profiled", lambda *_: True)(q.name, values)
+           and not all(getattr(H, "profiled", lambda *_: True)(q.name, {**values, p.name: float(x)}) for x in xs)]
+    out: list[dict[str, float]] = [{}]
+    for q in own:
+        out = [{**d, q.name: float(y)} for d in out for y in sorted(set(q.grid) | {values[q.name]})]
+    return out
 
 
 #: refits nearest the optimum (in conditional standard uncertainties) a pair's joint quadratic

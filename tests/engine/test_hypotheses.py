@@ -463,3 +463,29 @@ def test_a_mirror_behind_tubes_faces_the_room_from_the_wall_nearest_each_tube(tm
     merged = compile_booth(f)
     assert {r.normal for k, r in merged.reflectors.items() if k.startswith("fitted_mirror")} == {
         (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)}
+
+
+def test_a_type_is_chosen_with_each_choice_at_its_own_best_finish():
+    """A plate's type (opal or rough glass) against its faces (a choice only opal has): opal with
+    polished faces χ² 85, with matte faces 52, rough glass 84 (the aperture case on the reference
+    truth).  The type is decided with opal at its better faces: opal, matte, and the choices'
+    χ² recorded as compared (52 against 84), not opal at the faces it started with (85 against 84:
+    rough glass, its profile never reaching the matte faces)."""
+    table = {(0.0, 0.0): 85.0, (0.0, 1.0): 52.0, (1.0, 0.0): 84.0, (1.0, 1.0): 84.0}
+
+    def chi2(v):
+        return table[(v["rough"], v["matte_faces"])]
+
+    def R(v):
+        return _ToyFit(v, chi2)
+
+    H = _toy_hypothesis(GeometryParameter("rough", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True),
+                        GeometryParameter("matte_faces", (0.0, 1.0), 0.0, (0.0, 1.0), categorical=True))
+    H.profiled = staticmethod(lambda name, values: not (name == "matte_faces" and values["rough"] >= 0.5))
+    H.categorical_partner = staticmethod(lambda name: None)
+    v0 = {"rough": 0.0, "matte_faces": 0.0}
+    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
+    geo = fit.hypothesis_data["geometry"]["toy"]
+    assert geo["rough"][0] == 0.0 and geo["matte_faces"][0] == 1.0
+    assert fit.hypothesis_data["choices"]["toy"]["rough"] == {0.0: 52.0, 1.0: 84.0}
+    assert fit.chi2 == 52.0

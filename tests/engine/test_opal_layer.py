@@ -235,3 +235,24 @@ def test_the_radiance_toward_many_directions_is_its_fourier_series(monkeypatch, 
     got = layer.radiance_at(G, cos_o, phi)
     assert got.shape == (C, R, 2, 3)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_layer_between_the_solved_asymmetries_is_continuous_and_close_to_its_own_solution():
+    # a fitted transmittance moves the total: the law between the grid's asymmetries (a cubic over
+    # four) is continuous across a node and within 0.02 % of the layer solved at the total itself,
+    # at low and high asymmetry and in a thin layer (whose reachable totals span 0.05); the
+    # mixture transmits the total
+    from lbscene.engine.light.opal_layer import DEPTH_STEP, _node_g, fit_asymmetry, opal_layer_at, slab_optics
+
+    ci, co = np.array([1.0, 0.6, 0.2])[:, None], np.array([0.9, 0.5, 0.15])[None, :]
+    one = np.array([1.0])
+    tau = DEPTH_STEP ** 35                                   # a depth of the grid (2.0)
+    node = float(slab_optics(tau, _node_g(20), 1.49, one)[0][0])
+    np.testing.assert_allclose(opal_layer_at(tau, node - 1e-8, 1.49).btdf(ci, co, 0.4),
+                               opal_layer_at(tau, node + 1e-8, 1.49).btdf(ci, co, 0.4), rtol=1e-5)
+    for tau, T in ((tau, 0.615), (tau, 0.8049), (0.078, 0.899), (0.078, 0.91)):
+        solved = opal_layer(tau, fit_asymmetry(T, tau, 1.49), 1.49)
+        mixed = opal_layer_at(tau, T, 1.49)
+        peak = np.abs(solved.btdf(ci, co, 0.0)).max()
+        assert np.abs(mixed.btdf(ci, co, 0.4) - solved.btdf(ci, co, 0.4)).max() < 2e-4 * peak
+        assert mixed.scattered_total(one)[0] == pytest.approx(solved.scattered_total(one)[0], rel=1e-4)

@@ -1,0 +1,49 @@
+"""Forked workers (:func:`lbscene.engine.files.parallel.map_forked`): the loop's results, in order,
+from processes that start as copies of this one."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from lbscene.engine.files import parallel
+
+
+def test_forked_workers_give_the_loops_results_in_order(monkeypatch):
+    monkeypatch.setenv("LBSCENE_PROCESSES", "2")
+    state = {"scale": 3.0}              # a closure over this process' memory: never pickled
+
+    def work(x):
+        # the parent's thread pool did not survive the fork: chunks still run in the child
+        out = np.empty(8)
+
+        def chunk(a, b):
+            out[a:b] = np.arange(a, b) * state["scale"] + x
+        parallel.for_chunks(chunk, 8, 2)
+        return os.getpid(), float(out.sum())
+
+    parallel.for_chunks(lambda a, b: None, 4, 1)          # the parent's pool exists before the fork
+    got = parallel.map_forked(work, [0.0, 1.0, 2.0, 3.0, 4.0])
+    assert [v for _, v in got] == [84.0 + 8 * x for x in range(5)]
+    assert all(pid != os.getpid() for pid, _ in got)
+
+
+def test_one_worker_or_one_item_is_the_loop_itself(monkeypatch):
+    monkeypatch.setenv("LBSCENE_PROCESSES", "1")
+    assert parallel.map_forked(lambda x: (os.getpid(), x * 2), [1, 2]) == [(os.getpid(), 2), (os.getpid(), 4)]
+    monkeypatch.setenv("LBSCENE_PROCESSES", "2")
+    assert parallel.map_forked(lambda x: os.getpid(), [1]) == [os.getpid()]
+
+
+def test_an_error_in_a_worker_reaches_the_caller(monkeypatch):
+    monkeypatch.setenv("LBSCENE_PROCESSES", "2")
+
+    def work(x):
+        if x == 2:
+            raise ValueError("point 2 failed")
+        return x
+
+    with pytest.raises(ValueError, match="point 2 failed"):
+        parallel.map_forked(work, [1, 2, 3])
