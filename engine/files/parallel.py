@@ -33,7 +33,13 @@ _POOL: ThreadPoolExecutor | None = None
 
 def worker_count() -> int:
     """Threads used by :func:`for_chunks` (``LBSCENE_THREADS`` or the core count, ≤ MAX_WORKERS)."""
-    raw = os.environ.get("LBSCENE_THREADS", "").strip()
+    return _count("LBSCENE_THREADS")
+
+
+def _count(env: str) -> int:
+    """``env``'s positive count when set (at most 64), else the cores this process may run on (at
+    most :data:`MAX_WORKERS`)."""
+    raw = os.environ.get(env, "").strip()
     if raw.isdigit() and int(raw) > 0:
         return min(int(raw), 64)
     try:
@@ -63,14 +69,7 @@ def for_chunks(work: Callable[[int, int], None], n: int, chunk: int) -> None:
 def process_count() -> int:
     """Worker processes :func:`map_forked` uses: ``LBSCENE_PROCESSES`` when set (``1``: none),
     else the cores this process may run on (at most :data:`MAX_WORKERS`)."""
-    raw = os.environ.get("LBSCENE_PROCESSES", "").strip()
-    if raw.isdigit() and int(raw) > 0:
-        return min(int(raw), 64)
-    try:
-        n = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        n = os.cpu_count() or 1
-    return max(1, min(n, MAX_WORKERS))
+    return _count("LBSCENE_PROCESSES")
 
 
 #: the work of the current :func:`map_forked` (read by the forked workers from their copy of
