@@ -184,6 +184,10 @@ class LbsceneUserError(Exception):
         self.diagnostics: list[Diagnostic] = list(diagnostics)
         super().__init__("\n".join(d.format() for d in self.diagnostics))
 
+    def __reduce__(self):
+        # pickled with its diagnostics (an error raised in a forked worker reaches the caller whole)
+        return type(self), (self.diagnostics,)
+
     @classmethod
     def single(cls, code: str, message: str, file: str | None = None, line: int = 0,
                column: int = 0, **kw) -> "LbsceneUserError":

@@ -47,3 +47,21 @@ def test_an_error_in_a_worker_reaches_the_caller(monkeypatch):
 
     with pytest.raises(ValueError, match="point 2 failed"):
         parallel.map_forked(work, [1, 2, 3])
+
+
+def test_a_user_error_in_a_worker_reaches_the_caller_with_its_diagnostics(monkeypatch):
+    from lbscene.engine.files.diagnostics import LbsceneUserError
+
+    monkeypatch.setenv("LBSCENE_PROCESSES", "2")
+
+    def work(x):
+        if x == 2:
+            raise LbsceneUserError.single("LB407", "2 data values cannot fit 3 free parameters", "grid.csv",
+                                          line=4, column=2, expected="at least 4 readings")
+        return x
+
+    with pytest.raises(LbsceneUserError) as e:
+        parallel.map_forked(work, [1, 2, 3])
+    assert str(e.value) == "grid.csv:4:2: error LB407: 2 data values cannot fit 3 free parameters " \
+                           "(expected at least 4 readings)"
+    assert [d.code for d in e.value.diagnostics] == ["LB407"]
