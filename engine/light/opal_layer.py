@@ -434,12 +434,6 @@ class OpalLayer:
         return np.asarray([self._mode(m) for m in range(self.modes + 1)])
 
     @classmethod
-    def blend(cls, a: "OpalLayer", b: "OpalLayer", w: float) -> "OpalLayer":
-        """The layer between ``a`` and ``b`` (same faces): :meth:`mixture` of weights
-        :math:`1 - w` and :math:`w`."""
-        return cls.mixture([(a, 1.0 - float(w)), (b, float(w))])
-
-    @classmethod
     def mixture(cls, parts) -> "OpalLayer":
         """The layer whose every mode's kernel and scattered totals are :math:`\\sum_k w_k`
         times those of the layers of ``parts`` (``[(layer, w_k), …]``, same faces; weights
@@ -697,7 +691,6 @@ def _layer_at(tau: float, T: float, n: float) -> OpalLayer:
     return parts[0][0] if len(parts) == 1 and parts[0][1] == 1.0 else OpalLayer.mixture(parts)
 
 
-@lru_cache(maxsize=160)
 def _grid_layer(i: int, j: int, ior: float) -> OpalLayer:
     return _opal_layer(round(DEPTH_STEP ** i, 12), round(_node_g(j), 12), ior)
 

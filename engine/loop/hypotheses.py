@@ -395,12 +395,12 @@ def profile_geometry(H, ir, lighting: str, solve_on, fit, problem, problem_on=No
                 # each choice at its best of the choices only it has (an opal plate at its better
                 # faces against a rough one): the faces kept from another choice decided the type
                 # by a χ² unit where the better faces fitted by 30
-                prefetch([{**values, p.name: float(x), **sv} for x in xs
-                          for sv in _own_choices(H, params, p, xs, {**values, p.name: float(x)})])
+                own = [({**values, p.name: float(x)}, _own_choices(H, params, p, xs, {**values, p.name: float(x)}))
+                       for x in xs]
+                prefetch([{**v, **sv} for v, svs in own for sv in svs])
                 chi, subs = [], []
-                for x in xs:
-                    v = {**values, p.name: float(x)}
-                    c = [(at({**v, **sv})[2].chi2, sv) for sv in _own_choices(H, params, p, xs, v)]
+                for v, svs in own:
+                    c = [(at({**v, **sv})[2].chi2, sv) for sv in svs]
                     c_min, sv = min(c, key=lambda t: t[0])
                     chi.append(c_min)
                     subs.append(sv)
