@@ -601,6 +601,8 @@ class _Base:
     ir_caches: dict = field(default_factory=dict)
     #: the base fit's problem (spectral hypotheses alone are fitted on it, without a refit)
     problem: object = None
+    #: the least white-tile χ² hardware that only moves light can reach (:func:`_beyond_reach`)
+    reach_floor: float | None = None
 
     @property
     def ir(self):
@@ -814,6 +816,41 @@ def _cannot_rival(b: _Base, fit: FitResult, k: int, rival: float | None) -> str:
             f"against {rival:.0f} for an explanation that reaches the noise")
 
 
+def _beyond_reach(b: _Base, item: str, rival: float | None) -> str:
+    """Why refitting spatial hardware ``item`` cannot change the verdict ('' if it might).
+
+    Hardware that only moves light (flat transmittance and reflectance) leaves the white tile's
+    spectrum in the cone of the spectra light can carry to it (:mod:`.spectral_reach`): at best
+    it explains every reading's level and the tile's shape down to that cone's floor.  When
+    that best case, less the price of the hardware's parameters, stays more than
+    :data:`TIE_MARGIN` under ``rival`` (an explanation that reaches the noise), its refits and
+    profile are not run."""
+    if rival is None or b.problem is None or b.problem.tile_row is None:
+        return ""
+    if b.reach_floor is None:
+        b.reach_floor = _tile_floor(b)
+    k = _configure(b, (item,))[5].get(item, 0)
+    best = b.fit.chi2 - b.reach_floor - k * b.logn
+    if best >= rival - TIE_MARGIN:
+        return ""
+    return (f"not refitted: hardware that only moves light leaves the white tile's spectrum at best "
+            f"χ² {b.reach_floor:.0f} from the measured one (ΔBIC at most {best:.0f}, against {rival:.0f} "
+            f"for an explanation that reaches the noise)")
+
+
+def _tile_floor(b: _Base) -> float:
+    """:func:`~.spectral_reach.spectral_floor_chi2` of the base fit's booth."""
+    from .spectral_reach import spectral_floor_chi2
+
+    p = b.problem
+    x = np.array([b.fit.values[p.free[i].target] for i in p.nl])
+    fm = p.model(x)[0]
+    r = [p.tile_row]
+    pred = fm.predict(p.P[r], p.N[r], p.meter[r])
+    return spectral_floor_chi2(b.ir, b.lighting, pred.terms, 0, b.meas.tile.reflectance_1nm, p.tile_grid,
+                               p.tile_meas, p.tile_mask, b.noise.spectral_percent)
+
+
 def _finish(b: _Base, items, prob, fit, free, post, hw, n_params, cur_ir, k: int | None = None) -> Suspect | None:
     """Fit the spectral hypotheses on top of ``fit`` and score the explanation (``k``: the
     parameters fitted so far, the free ones and the profiled geometry)."""
@@ -846,8 +883,10 @@ def _not_profiled_note(fit: FitResult) -> str:
     return f"# hypothesis: {why}\n" if why else ""
 
 
-def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> list[Suspect]:
-    """Every candidate on its own, best first."""
+def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
+                   skipped: dict[str, str]) -> list[Suspect]:
+    """Every candidate on its own, best first; hardware whose refit cannot change the verdict
+    (:func:`_beyond_reach`) is added to ``skipped`` with why."""
     # hardware the file does not declare is hypothesised only when the booth as declared leaves
     # something to explain: its residual above the noise, or a catalog effect that helps
     suspects = []
@@ -857,7 +896,7 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> lis
         return H is not None and H.hardware and H.channel == "spatial"
 
     # hardware with a geometry to profile last: the explanations before it may make its profile
-    # moot (_cannot_rival)
+    # moot (_cannot_rival), or the hardware itself (_beyond_reach)
     order = [i for i in todo if not spatial_hardware(i)] + [i for i in todo if spatial_hardware(i)]
     for k, item in enumerate(order):
         if (H := _hypothesis(item)) is not None and H.hardware \
@@ -866,6 +905,9 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress) -> lis
         if progress:
             progress(k, len(order), item)
         rival = max((x.score for x in suspects if x.explains and not x.not_eligible), default=None)
+        if spatial_hardware(item) and (why := _beyond_reach(b, item, rival)):
+            skipped[item] = why
+            continue
         s_ = _refit(b, (item,), rival)
         if s_ is not None:
             suspects.append(s_)
@@ -911,7 +953,7 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     structure_before = moran_i(b.pts, b.fit.residual_percent) if len(b.pts) else float("nan")
     todo, skipped = _candidate_items(b.ir, b.lighting, b.effects, candidates)
     consistent = consistent_with_noise(b.fit, **b.ctest)
-    suspects = _single_refits(b, todo, consistent, progress)
+    suspects = _single_refits(b, todo, consistent, progress, skipped)
     pairs = _pair_refits(b, suspects, consistent, progress, len(todo))
     if progress:
         progress(1, 1, "")
