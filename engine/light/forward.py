@@ -690,10 +690,16 @@ class ForwardModel:
             if isinstance(src, DirectionalSource):
                 from .geometry import quad_centroids
 
-                d = P[None, :, :] - quad_centroids(src.polys)[:, None, :]          # (S, M, 3)
-                d = d / np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-9)
-                L = src.radiance(d)                                                # (S, M, K)
-                geo = np.pi * np.einsum("ms,smk->mk", F, L)
+                # the radiance only toward receivers that see a polygon (a plate's light is
+                # asked for at every patch of the room, the cavity above it and the walls' backs
+                # included: the evaluation is the cost)
+                seen = np.flatnonzero(F.any(axis=1))
+                geo = np.zeros((len(P), len(src.terms)))
+                if seen.size:
+                    d = P[None, seen, :] - quad_centroids(src.polys)[:, None, :]   # (S, M', 3)
+                    d = d / np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-9)
+                    L = src.radiance(d)                                            # (S, M', K)
+                    geo[seen] = np.pi * np.einsum("ms,smk->mk", F[seen], L)
             else:
                 geo = F @ src.exitance                           # (M, K)
             for k, d in enumerate(src.terms):
