@@ -6,7 +6,9 @@ The measurement sets are made once, by this checkout: the Mitsuba 3 cases of
 ``tests/engine/test_diagnosis_on_truth.py`` (55-point A3 grid, white tile at 5 nm), the
 narrow-dip filter of ``tests/engine/test_spectral_verdicts.py`` (σ = 15 nm, 25 %), and
 synthetic readings of the shipped SpectraLight QC (six effects enabled, a detector's cosine
-error hidden; the reference engine).  Each ``compare`` runs in a fresh process (nothing
+error hidden; the reference engine).  "refitted": the candidates refitted; "out of reach":
+hardware hypotheses the white tile's spectrum ruled out before any refit
+(:mod:`lbscene.engine.loop.spectral_reach`).  Each ``compare`` runs in a fresh process (nothing
 cached in memory, the geometry disk cache off); the table gives the best of ``--repeat`` runs
 of its ``diagnose`` step, wall and CPU time (all threads and the worker processes it forks; on a
 shared machine the wall time measures the other jobs too).  With ``--baseline``, a checkout of the code before (with its own
@@ -80,7 +82,8 @@ def time_one(python: str, m: Path, repeat: int) -> dict:
             "C.diagnose = timed\n"
             "r = C.run_compare(sys.argv[1], history=False)\n"
             "print(json.dumps({'diagnose': r.timing_s.get('diagnose'), 'total': r.timing_s.get('total'),"
-            " 'cpu': sum(cpu), 'verdict': str(r.verdict), 'candidates': len(r.diagnosis.suspects)}))\n")
+            " 'cpu': sum(cpu), 'verdict': str(r.verdict), 'candidates': len(r.diagnosis.suspects),"
+            " 'screened': sum(1 for v in r.diagnosis.skipped.values() if v.startswith('not refitted'))}))\n")
     env = {**os.environ, "LBSCENE_CACHE_DIR": "off"}
     runs = []
     for _ in range(repeat):
@@ -100,7 +103,7 @@ def main() -> int:
     base_py = str(a.baseline / ".venv" / "bin" / "python") if a.baseline else None
     with tempfile.TemporaryDirectory() as td:
         cases = make_cases(Path(td))
-        head = "| case | candidates | diagnose s | diagnose CPU s | total s | verdict |"
+        head = "| case | refitted | out of reach | diagnose s | diagnose CPU s | total s | verdict |"
         if base_py:
             head += " before: diagnose s | before: diagnose CPU s | before: verdict | before / now (CPU) |"
         print(head)
@@ -110,7 +113,8 @@ def main() -> int:
             if "error" in now:
                 print(f"| {label} | error: {now['error']} |", flush=True)
                 continue
-            row = (f"| {label} | {now['candidates']} | {now['diagnose']:.2f} | {now['cpu']:.2f} | {now['total']:.2f} | "
+            row = (f"| {label} | {now['candidates']} | {now.get('screened', 0)} | {now['diagnose']:.2f} | "
+                   f"{now['cpu']:.2f} | {now['total']:.2f} | "
                    f"{now['verdict']} |")
             if base_py:
                 old = time_one(base_py, m, a.repeat)

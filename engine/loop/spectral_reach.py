@@ -2,7 +2,7 @@
 What moving light around can do to the white tile's spectrum: a bound before a refit.
 
 Hardware that changes only where light goes (a plate of flat transmittance, an aperture plate
-with a grey interior, a mirror of flat reflectance) cannot give the light a spectrum it did not
+with a grey interior, a mirror of flat reflectance, a wall or ceiling of another grey) cannot give the light a spectrum it did not
 have.  Whatever its geometry, the tile's predicted radiance stays in the cone
 
 .. math:: L(λ) = \\frac{ρ_\\text{tile}(λ)}{π} \\sum_j a_j\\, S_j(λ), \\qquad a_j ≥ 0,
@@ -24,10 +24,13 @@ than the tie margin under an explanation that reaches the noise, its refits (sec
 through the forward model) cannot change the verdict and are not run
 (:func:`lbscene.engine.loop.diagnose.diagnose` says so under "not tested").
 
-The cone is a relaxation: it lets every path's weight vary freely, so the bound is never
-tighter than what a geometry can do; only paths of more than :data:`REACH_ORDER` reflections
-with a spectrum outside the cone (their share of the tile's light is below a percent in a
-booth of 0.9 walls) escape it.
+The cone is a relaxation: it lets every path's weight vary freely, so for paths of up to
+:data:`REACH_ORDER` reflections the bound is never tighter than what a geometry can do.  Longer
+paths enter only through the terms' own contributions, at the base fit's weights: a geometry that
+reweights them on strongly coloured surfaces could leave the cone by the difference between a
+fourth power of a reflectance and its nearest mix of the lower ones.  The floor is checked against
+the refits it saves, through the forward model, on the Mitsuba truth of an undeclared filter
+(``tests/engine/test_spectral_reach.py``).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-__all__ = ["REACH_ORDER", "spectral_floor_chi2"]
+__all__ = ["REACH_ORDER", "cone_spectra_1nm", "spectral_floor_chi2"]
 
 #: reflections per path whose spectra the cone holds (products of the booth's band reflectances)
 REACH_ORDER = 3
@@ -65,7 +68,7 @@ def _band_factors(ir, lighting: str) -> list[np.ndarray]:
         out.append(np.asarray(b if b is not None else m.reflectance.array_bands, float))
     if ir.diffuser is not None:
         out.append(ir.diffuser.transmittance.array_bands)
-    return [f for f in _unique(out)]
+    return _unique(out)
 
 
 def cone_spectra_1nm(ir, lighting: str, terms, row: int) -> np.ndarray:
@@ -114,8 +117,11 @@ def spectral_floor_chi2(ir, lighting: str, terms, row: int, tile_reflectance_1nm
     u = 100.0 / float(spectral_percent)
     C = A - A.mean(axis=0)[None, :]
     w = 1e3 * u * np.sqrt(n)
-    a, _ = nnls(np.vstack([u * C, w * A.mean(axis=0)[None, :]]), np.concatenate([np.zeros(n), [w]]),
-                maxiter=50 * A.shape[1])
+    try:
+        a, _ = nnls(np.vstack([u * C, w * A.mean(axis=0)[None, :]]), np.concatenate([np.zeros(n), [w]]),
+                    maxiter=50 * A.shape[1])
+    except RuntimeError:        # not converged: no floor (every refit runs)
+        return 0.0
     mean = float(A.mean(axis=0) @ a)
     if mean <= 0:
         return 0.0

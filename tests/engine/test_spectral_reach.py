@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -35,7 +35,6 @@ class _IR:
     materials: dict
     grid: object = DEFAULT_GRID
     diffuser: object = None
-    extra: dict = field(default_factory=dict)
 
 
 def _material(values_1nm):
@@ -101,11 +100,9 @@ def test_the_cone_holds_every_product_up_to_its_order():
     assert np.allclose(np.linalg.norm(S, axis=1), 1.0)
 
 
-DATA = Path(__file__).resolve().parents[1] / "data"
-
-
 def _truth_cases():
-    spec = importlib.util.spec_from_file_location("diagnosis_on_truth_reach", Path(__file__).parent / "test_diagnosis_on_truth.py")
+    spec = importlib.util.spec_from_file_location("diagnosis_on_truth_reach",
+                                                  Path(__file__).parent / "test_diagnosis_on_truth.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod
     spec.loader.exec_module(mod)
