@@ -824,8 +824,9 @@ def _beyond_reach(b: _Base, item: str, rival: float | None) -> str:
     it explains every reading's level and the tile's shape down to that cone's floor.  When
     that best case, less the price of the hardware's parameters, stays more than
     :data:`TIE_MARGIN` under ``rival`` (an explanation that reaches the noise), its refits and
-    profile are not run."""
-    if rival is None or b.problem is None or b.problem.tile_row is None:
+    profile are not run.  Not where the refit reshapes the lamps' spectra itself
+    (:func:`_reshapes_spectra`)."""
+    if rival is None or b.problem is None or b.problem.tile_row is None or _reshapes_spectra(b.free):
         return ""
     if b.reach_floor is None:
         b.reach_floor = _tile_floor(b)
@@ -836,6 +837,17 @@ def _beyond_reach(b: _Base, item: str, rival: float | None) -> str:
     return (f"not refitted: hardware that only moves light leaves the white tile's spectrum at best "
             f"χ² {b.reach_floor:.0f} from the measured one (ΔBIC at most {best:.0f}, against {rival:.0f} "
             f"for an explanation that reaches the noise)")
+
+
+def _reshapes_spectra(free) -> bool:
+    """Whether a refit moves spectra through free parameters of its own (an enabled spectral
+    effect's, refitted with every candidate): the cone of :mod:`.spectral_reach` holds the lamps'
+    spectra as the base fit has them, so a refit that reshapes them too may leave it."""
+    from lbscene.engine.light.effects.registry import available_effects
+
+    eff = available_effects()
+    return any(fp.scope == "hypothesis" or
+               (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral") for fp in free)
 
 
 def _tile_floor(b: _Base) -> float:

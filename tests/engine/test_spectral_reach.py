@@ -146,3 +146,19 @@ def test_hardware_refits_stay_above_the_floor(tmp_path, monkeypatch, hyp):
     assert tile_chi2 >= floors[0] - 1e-6
     # and the floor is not vacuous: most of the tile's misfit is out of reach
     assert floors[0] > 0.5 * D._chi2_parts(d.base, noise)[1]
+
+
+def test_no_floor_where_the_refit_reshapes_the_lamps_spectra():
+    # a booth whose enabled spectral effect is refitted with every candidate: the lamps'
+    # spectra move in the hardware's refit too, out of the cone; the hardware is refitted
+    import lbscene.engine.loop.diagnose as D
+    from lbscene.engine.loop.fit import FreeParameter
+
+    level = [FreeParameter("group.tubes.intensity_scale", (0.1, 10.0), 1.0)]
+    b = SimpleNamespace(problem=SimpleNamespace(tile_row=0), free=level, reach_floor=None)
+    assert D._reshapes_spectra(level) is False
+    for target in ("effect.lamp_spectrum_shift.shift_nm", "effect.spectral_filter.coefficients_0"):
+        b.free = level + [FreeParameter(target, (-10.0, 10.0), 0.0)]
+        assert D._reshapes_spectra(b.free) is True
+        assert D._beyond_reach(b, "hypothesis:mirror", rival=1e9) == ""
+        assert b.reach_floor is None             # not even computed
