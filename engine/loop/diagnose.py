@@ -338,6 +338,14 @@ class Diagnosis:
                    ("too dear to refit with every candidate", self.held_for_cost))
         return [(f"held at the booth's values ({why}): ", ", ".join(names)) for why, names in reasons if names]
 
+    def not_tested_line(self) -> str:
+        """The candidates not tested, those with one reason together (the text output and the
+        report print it; the JSON's ``not_tested`` has each with its reason)."""
+        by_reason: dict[str, list[str]] = {}
+        for k, why in self.skipped.items():
+            by_reason.setdefault(why, []).append(k)
+        return "; ".join(f"{', '.join(ks)} ({why})" for why, ks in by_reason.items())
+
 
 # --------------------------------------------------------------------------- snippets
 
@@ -835,8 +843,8 @@ def _beyond_reach(b: _Base, item: str, rival: float | None) -> str:
     if best >= rival - TIE_MARGIN:
         return ""
     return (f"not refitted: hardware that only moves light leaves the white tile's spectrum at best "
-            f"χ² {b.reach_floor:.0f} from the measured one (ΔBIC at most {best:.0f}, against {rival:.0f} "
-            f"for an explanation that reaches the noise)")
+            f"χ² {b.reach_floor:.0f} from the measured one, too far to come within {TIE_MARGIN:g} of an "
+            f"explanation that reaches the noise (ΔBIC {rival:.0f})")
 
 
 def _reshapes_spectra(free) -> bool:

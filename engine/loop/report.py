@@ -199,8 +199,7 @@ def _render_report(res) -> str:
               + (f" — not eligible: {s.not_eligible}" if s.not_eligible else ""),
               ", ".join(f"{k}={v:.4g}" for k, v in s.params.items())] for s in d.suspects]))
         if d.skipped:
-            parts.append("<p class=meta>not tested: " + e("; ".join(f"{k} ({v})" for k, v in d.skipped.items()))
-                         + "</p>")
+            parts.append("<p class=meta>not tested: " + e(d.not_tested_line()) + "</p>")
         for prefix, names in d.held_lines():
             parts.append("<p class=meta>" + prefix + e(names) + "</p>")
     if res.plan is not None and res.plan.points:

@@ -96,7 +96,7 @@ def print_text(res, console) -> None:
             if s.not_eligible:
                 console.print(f"not eligible: {s.not_eligible}", style="dim")
     if d.skipped:
-        console.print("not tested: " + "; ".join(f"{k} ({v})" for k, v in d.skipped.items()), style="dim")
+        console.print("not tested: " + d.not_tested_line(), style="dim")
     for prefix, names in d.held_lines():
         console.print(prefix + names, style="dim")
     if res.outliers:
