@@ -43,18 +43,23 @@ __all__ = ["REACH_ORDER", "cone_spectra_1nm", "spectral_floor_chi2"]
 
 #: reflections per path whose spectra the cone holds (products of the booth's band reflectances)
 REACH_ORDER = 3
-#: spectra within this relative distance (after normalising) are one column
+#: normalised spectra equal to this resolution are one column
 _SAME = 1e-6
 
 
 def _unique(rows: list[np.ndarray]) -> list[np.ndarray]:
+    """The rows normalised, each shape once (keyed by its values rounded to :data:`_SAME`: a
+    booth of many materials has hundreds of products, compared in one pass)."""
     out: list[np.ndarray] = []
+    seen: set[bytes] = set()
     for r in rows:
         n = float(np.linalg.norm(r))
         if not np.isfinite(n) or n <= 0:
             continue
         u = r / n
-        if all(np.linalg.norm(u - v) > _SAME for v in out):
+        key = np.round(u / _SAME).astype(np.int64).tobytes()
+        if key not in seen:
+            seen.add(key)
             out.append(u)
     return out
 
