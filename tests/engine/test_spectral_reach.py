@@ -114,7 +114,8 @@ def _truth_cases():
 def test_hardware_refits_stay_above_the_floor(tmp_path, monkeypatch, hyp):
     """The undeclared 25 % dip filter (Mitsuba truth, A3 grid, white tile at 5 nm, output
     fitted): each hardware hypothesis, refitted as if it could rival the filter, leaves the
-    tile's χ² above the floor that let the diagnosis skip it."""
+    tile's χ² above the floor that let the diagnosis skip it; its first guess is kept, and said to
+    be."""
     import lbscene.engine.loop.diagnose as D
     from lbscene.engine.loop.fit import FitProblem, resolve_free_parameters
     from lbscene.engine.loop.measurements import load_measurements
@@ -144,6 +145,11 @@ def test_hardware_refits_stay_above_the_floor(tmp_path, monkeypatch, hyp):
     sp = s.fit.spectral_residual_percent
     tile_chi2 = float(np.sum((sp[np.isfinite(sp)] / noise.spectral_percent) ** 2))
     assert tile_chi2 >= floors[0] - 1e-6
+    # refitted anyway, its geometry is still not profiled (it cannot rival the filter either way),
+    # and the hardware it suggests says so
+    assert s.fit.hypothesis_data["not_profiled"].startswith("geometry not fitted: at best ΔBIC ")
+    assert "geometry" not in s.fit.hypothesis_data
+    assert next(iter(s.hardware.values())).startswith("# hypothesis: geometry not fitted")
     # and the floor is not vacuous: most of the tile's misfit is out of reach
     assert floors[0] > 0.5 * D._chi2_parts(d.base, noise)[1]
 
