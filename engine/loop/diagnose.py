@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from .fit import (GOF_ALPHA, NOISE_Z, FitProblem, FitResult, _spectral_parameters, _tile_consistent,  # noqa: F401
-                  chi2_limit, consistent_with_noise, effect_parameter, readings_consistent)
+                  chi2_limit, consistent_with_noise, effect_parameter, readings_consistent, spectral_parameters)
 from .hypotheses import HYPOTHESES, applicable_hypotheses, profile_geometry
 
 __all__ = ["Suspect", "Diagnosis", "Verdict", "Confidence", "PAIR_CANDIDATES", "BOOTSTRAP_SAMPLES", "diagnose", "consistent_with_noise", "effects_snippet",
@@ -851,11 +851,7 @@ def _reshapes_spectra(free) -> bool:
     """Whether a refit moves spectra through free parameters of its own (an enabled spectral
     effect's, refitted with every candidate): the cone of :mod:`.spectral_reach` holds the lamps'
     spectra as the base fit has them, so a refit that reshapes them too may leave it."""
-    from lbscene.engine.light.effects.registry import available_effects
-
-    eff = available_effects()
-    return any(fp.scope == "hypothesis" or
-               (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral") for fp in free)
+    return bool(spectral_parameters(free))
 
 
 def _tile_floor(b: _Base) -> float:

@@ -34,6 +34,7 @@ __all__ = [
     "FitProblem",
     "FitResult",
     "default_free_parameters",
+    "spectral_parameters",
     "resolve_free_parameters",
     "estimate_noise_percent",
     "CORRELATION_WARNING",
@@ -704,16 +705,16 @@ def _tile_consistent(fit: FitResult, spectral_noise_percent: float | None, k_s: 
     return float(s @ s) <= chi2_limit(max(s.size - 1 - k_s, 1), alpha)
 
 
-def _spectral_parameters(fit: FitResult) -> int:
-    """How many of a fit's free parameters change spectra only (a hypothesised filter's
-    coefficients, a spectral effect's parameters)."""
+def spectral_parameters(free) -> list:
+    """The free parameters that change spectra only (a hypothesised filter's coefficients, a
+    spectral effect's parameters)."""
     from lbscene.engine.light.effects.registry import available_effects
 
-    if not fit.fitted:
-        return 0
     eff = available_effects()
-    n = 0
-    for fp in fit.free:
-        if fp.scope == "hypothesis" or (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral"):
-            n += 1
-    return n
+    return [fp for fp in free if fp.scope == "hypothesis" or
+            (fp.scope == "effect" and getattr(eff.get(fp.ident), "kind", "") == "spectral")]
+
+
+def _spectral_parameters(fit: FitResult) -> int:
+    """How many of a fit's free parameters change spectra only (:func:`spectral_parameters`)."""
+    return len(spectral_parameters(fit.free)) if fit.fitted else 0

@@ -2,8 +2,8 @@
 What moving light around can do to the white tile's spectrum: a bound before a refit.
 
 Hardware that changes only where light goes (a plate of flat transmittance, an aperture plate
-with a grey interior, a mirror of flat reflectance, a wall or ceiling of another grey) cannot give the light a spectrum it did not
-have.  Whatever its geometry, the tile's predicted radiance stays in the cone
+with a grey interior, a mirror of flat reflectance, a wall or ceiling of another grey) cannot
+give the light a spectrum it did not have.  Whatever its geometry, the tile's predicted radiance stays in the cone
 
 .. math:: L(λ) = \\frac{ρ_\\text{tile}(λ)}{π} \\sum_j a_j\\, S_j(λ), \\qquad a_j ≥ 0,
 
