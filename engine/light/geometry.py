@@ -44,6 +44,7 @@ __all__ = [
     "lamp_surface_distance_mm",
     "mirror_points",
     "mirror_directions",
+    "mirrored_front_part",
     "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
@@ -992,6 +993,54 @@ def mirror_directions(u, normal) -> np.ndarray:
     u = np.asarray(u, float)
     n = np.asarray(normal, float)
     return u - 2.0 * (u @ n)[..., None] * n
+
+
+def mirrored_front_part(rect: "Rectangle", centre, normal, eps_mm: float = 1e-6) -> "Rectangle | None":
+    """The part of ``rect`` in front of the plane through ``centre`` (the side its unit ``normal``
+    points to), mirrored across the plane; None when no part of it is in front.
+
+    A path reflected by a plane mirror (a lamp's image in a glass plate's top face, in its
+    reflector) runs straight from the image to the receiver: the occluders its first leg, lamp to
+    mirror, passes stand on that line mirrored, on the image's side.  A rectangle the plane cuts
+    along one of its axes keeps the part in front; one cut obliquely, or with an opening that the
+    plane cuts, is left out (None: no occluder found is safer than one counted where it is
+    not).
+
+    >>> r = Rectangle(np.array([0.0, 0.0, 20.0]), np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]), (5.0, 5.0))
+    >>> m = mirrored_front_part(r, [0.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    >>> m.centre.tolist(), m.normal.tolist()
+    ([0.0, 0.0, -20.0], [0.0, 0.0, 1.0])
+    >>> wall = Rectangle(np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), (10.0, 4.0))
+    >>> cut = mirrored_front_part(wall, [0.0, 0.0, 2.0], [0.0, 0.0, 1.0])   # the part from z 2 to 10
+    >>> cut.centre.tolist(), cut.half
+    ([0.0, 0.0, -2.0], (4.0, 4.0))
+    """
+    n = np.asarray(normal, float)
+    c0 = np.asarray(centre, float)
+    u, v = np.asarray(rect.u, float), np.asarray(rect.v, float)
+    hu, hv = float(rect.half[0]), float(rect.half[1])
+    d0 = float((np.asarray(rect.centre, float) - c0) @ n)
+    a, b = float(u @ n), float(v @ n)
+    reach = abs(a) * hu + abs(b) * hv
+    if d0 - reach >= -eps_mm:
+        part = rect
+    elif d0 + reach <= eps_mm:
+        return None
+    elif rect.hole_half is not None:
+        return None
+    else:
+        axis, other, h, k = (u, v, hu, a) if abs(b) < 1e-9 else (v, u, hv, b) if abs(a) < 1e-9 else (None,) * 4
+        if axis is None:
+            return None
+        t0 = -d0 / k                                     # d0 + k t = 0 along the axis
+        lo, hi = (max(t0, -h), h) if k > 0 else (-h, min(t0, h))
+        if hi - lo <= eps_mm:
+            return None
+        cen = np.asarray(rect.centre, float) + 0.5 * (lo + hi) * axis
+        half = (0.5 * (hi - lo), hv) if axis is u else (hu, 0.5 * (hi - lo))
+        part = Rectangle(cen, np.asarray(rect.normal, float), u, half)
+    return Rectangle(mirror_points(part.centre, c0, n), mirror_directions(part.normal, n),
+                     mirror_directions(part.u, n), tuple(float(x) for x in part.half), part.hole_half)
 
 
 def lamp_surface_distance_mm(lamps, points: np.ndarray) -> np.ndarray:

@@ -141,3 +141,30 @@ def test_a_mirror_reflects_the_other_lamps_light_too(tmp_path):
     assert 0 < -150 + t * (800 + 150) <= 300
     E = ForwardModel(ir, "AB").illuminance_lx(P, N, meter=False)
     np.testing.assert_allclose(E, expected, rtol=2e-3)
+
+
+def test_an_occluder_between_the_lamp_and_its_mirror_hides_the_image(tmp_path):
+    # a panel standing 20 mm beside the tube's axis, from 10 mm under the tube to 1 mm under the
+    # mirror: the light going up to the mirror's far half crosses it (below z 734 everywhere on
+    # the tube) and the receiver far out on that side, 1 m off, gets none of the image, though
+    # the way down from the mirror to it is clear; the receiver on the other side keeps it
+    panel = ("occluders:\n  - {id: shade, type: panel, centre_mm: [0, 20, 712], normal: [0, 1, 0], "
+             "u_axis: [1, 0, 0], size_mm: [700, 44]}\n")
+
+    def model(folder, mirror: bool, shade: bool):
+        folder.mkdir()
+        y = BOOTH if mirror else BOOTH.replace(" reflector: mirror,", "").replace("  reflector: {}\n", "")
+        if shade:
+            y = y.replace("lighting:\n", panel + "lighting:\n") + "  aperture_occlusion: {}\n"
+        (folder / "booth.yaml").write_text(y)
+        return ForwardModel(compile_booth(folder / "booth.yaml"), "M")
+
+    P = np.array([[0.0, 1000.0, 0.0], [0.0, -1000.0, 0.0]])
+    N = np.array([[0.0, 0.0, 1.0]] * 2)
+    both = model(tmp_path / "mirror", True, False).illuminance_lx(P, N, meter=False)
+    bare = model(tmp_path / "bare", False, False).illuminance_lx(P, N, meter=False)
+    shaded = model(tmp_path / "shaded", True, True).illuminance_lx(P, N, meter=False)
+    shaded_bare = model(tmp_path / "shaded-bare", False, True).illuminance_lx(P, N, meter=False)
+    assert both[1] - bare[1] > 0.05 * bare[1]                    # the image's light on the far side
+    assert shaded[0] == pytest.approx(shaded_bare[0], rel=1e-3)
+    assert shaded[1] == pytest.approx(both[1], rel=1e-3)

@@ -310,6 +310,36 @@ def test_a_glass_plate_reflects_a_lamp_above_it_as_its_mirror_image(tmp_path, x_
     assert abs(diffuse / bare - 1 - image_share) > 0.1 * image_share
 
 
+def test_an_occluder_on_the_way_down_to_the_plate_hides_the_lamps_image(tmp_path):
+    # the bulb 100 mm over the glass plate as above, and a black panel 50 mm under the bulb over
+    # x 20 to 120 mm.  A receiver at x 400 mm, 200 mm over the plate's top face, gets the image's
+    # light reflected at x 400·98.5/297 = 132.7 mm: on its way down from the bulb (0 to 132.7 mm)
+    # the light crosses z 350 at x 67 mm, on the panel, so none of it is reflected there; the
+    # way up to the receiver crosses z 350 at x 198 mm, past the panel, and the bulb's own light
+    # goes up, away from it.  At x -400 mm nothing of the reflected path meets the panel.
+    panel = ("occluders:\n  - {id: shade, type: panel, centre_mm: [70, 0, 350], normal: [0, 0, -1], "
+             "u_axis: [1, 0, 0], size_mm: [100, 400], material: black}\n")
+    P = np.array([[400.0, 0.0, 500.0], [-400.0, 0.0, 500.0]])
+    N = np.array([[0.0, 0.0, -1.0]] * 2)
+
+    def booth(folder, shade):
+        ir = _bulb_over_plate(folder, True)
+        if not shade:
+            return ir
+        y = (folder / "booth.yaml").read_text().replace("lighting:\n", panel + "lighting:\n")
+        y = y.replace("effects:\n", "effects:\n  aperture_occlusion: {}\n")
+        (folder / "booth.yaml").write_text(y)
+        return compile_booth(folder)
+
+    bare = ForwardModel(_bulb_over_plate(tmp_path / "bare", False), "L").illuminance_lx(P, N, meter=False)
+    plate = ForwardModel(booth(tmp_path / "plate", False), "L").illuminance_lx(P, N, meter=False)
+    shaded = ForwardModel(booth(tmp_path / "shaded", True), "L").illuminance_lx(P, N, meter=False)
+    image = plate - bare
+    assert image[0] > 0.03 * bare[0]                  # the image's light, the panel away
+    assert shaded[0] == pytest.approx(bare[0], rel=1e-3)
+    assert shaded[1] == pytest.approx(plate[1], rel=1e-3)
+
+
 def _refract(d, n, eta):
     """Vector Snell: direction ``d`` through a face of normal ``n`` (against ``d``), index ratio ``eta``."""
     c = -np.sum(d * n, axis=-1, keepdims=True)

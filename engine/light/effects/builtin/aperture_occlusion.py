@@ -18,6 +18,7 @@ from pydantic import Field
 
 from lbscene.engine.light.effects.physics import PathChannel, PhysicalEffect
 from lbscene.engine.light.effects.registry import EffectParams, register_effect
+from lbscene.engine.light.geometry import mirrored_front_part
 from lbscene.engine.light.plates import occluder_rects
 from lbscene.schemas.base import Identifier
 
@@ -86,12 +87,35 @@ class ApertureOcclusionEffect(PhysicalEffect):
     def path_factors(ctx, p, es, rx):
         rects = ApertureOcclusionEffect._rects(ctx, p)
         blocked = None
+        plane = _mirror_plane(ctx, es)
         for o, rect in rects:
             if o.lamps is not None and es.lamp_id not in o.lamps:
                 continue
             b = ctx.fraction_hitting(es, rx, rect)
+            if plane is not None and (m := mirrored_front_part(rect, *plane)) is not None:
+                # a mirror image's light: the occluders its first leg, from the lamp to the
+                # mirror, passes stand mirrored on the image's straight path
+                hit = ctx.fraction_hitting(es, rx, m)
+                b = 1.0 - (1.0 - b) * (1.0 - hit)
             # several occluders on one path: the blocked fractions combine as independent
             blocked = b if blocked is None else 1.0 - (1.0 - blocked) * (1.0 - b)
         if blocked is None or not blocked.any():
             return None
         return [PathChannel(1.0 - blocked)]
+
+
+def _mirror_plane(ctx, es) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(point, normal)`` of the plane mirror whose image of a lamp ``es`` is (a diffuser plate's
+    top face, a reflector's facet), the normal toward the lamp's side; None for a lamp itself."""
+    if es.meta.get("plate_image") and ctx.ir.diffuser is not None:
+        from lbscene.engine.light.plates import plate_top_mm
+
+        return np.array([0.0, 0.0, plate_top_mm(ctx.ir)]), np.array([0.0, 0.0, 1.0])
+    rect = es.meta.get("mirror")
+    if rect is None:
+        return None
+    c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
+    # the images lie behind the mirror: the lamp's side is the other one
+    if float(np.mean((np.asarray(es.points_mm, float) - c) @ n)) > 0:
+        n = -n
+    return c, n
