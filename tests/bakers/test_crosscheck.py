@@ -244,10 +244,23 @@ _SPECTRALIGHT = ("the model's light with inter-reflection is above Cycles in the
                  "a part of the rest is the bake's own (its mean rose 0.11 % from 24377 to 65536 samples), "
                  "not yet traced further")
 
+#: the SpectraLight's lamps that shine into its white luminaire cavity (bare tubes and bulbs, the
+#: D65 boxes standing in their light): the model is below Cycles at final quality
+_SPECTRALIGHT_CAVITY = ("with the lamps in the open luminaire cavity the model's light is below Cycles: "
+                        "Cycles / model - 1 = +0.64 % at TL84 (3.9 sigma; 56 % of the light at the sample "
+                        "is inter-reflected) and +1.24 % at A (3.7 sigma); their direct light agrees (+0.03 %, "
+                        "-0.02 %).  With the D65 boxes stopping "
+                        "only their own lamp, as the booth declared them before, the model was 1.6 % "
+                        "above Cycles at TL84 and 2.0 % at A; not yet traced further")
+
 
 @pytest.mark.slow
 @pytest.mark.parametrize("folder,lighting", [pytest.param("xrite-spectralight-qc", "D65", id="xrite-spectralight-qc-D65",
                                                           marks=pytest.mark.xfail(strict=True, reason=_SPECTRALIGHT)),
+                                             *(pytest.param("xrite-spectralight-qc", lit, id=f"xrite-spectralight-qc-{lit}",
+                                                            marks=pytest.mark.xfail(strict=True,
+                                                                                    reason=_SPECTRALIGHT_CAVITY))
+                                               for lit in ("TL84", "A")),
                                              ("iso3664-p1-d50", "P1"),
                                              ("byk-byko-spectra-effect", "FL950"),
                                              pytest.param(VALIDATION / "opal-cavity-45", "L", id="opal-cavity-45-L",
