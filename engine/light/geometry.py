@@ -30,7 +30,7 @@ True
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -44,7 +44,7 @@ __all__ = [
     "lamp_surface_distance_mm",
     "mirror_points",
     "mirror_directions",
-    "mirrored_front_part",
+    "mirrored_front_part", "mirrored_body",
     "quad_r2_points",
     "segment_hits_rectangle",
     "segment_fraction_hitting",
@@ -254,14 +254,30 @@ def quad_areas(polys: np.ndarray) -> np.ndarray:
                   + np.linalg.norm(np.cross(p2 - p0, p3 - p0), axis=1))
 
 
-def quad_subpoints(polys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+def quad_subpoints(polys: np.ndarray, k: int, gauss: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """``k×k`` bilinear sub-cell centres of each quad: points ``(P, k*k, 3)``, weights ``(P, k*k)``.
 
-    Weights are the sub-cell area fractions (they sum to 1 per quad).
+    Weights are the sub-cell area fractions (they sum to 1 per quad).  With ``gauss`` the points
+    are the tensor Gauss–Legendre nodes of the bilinear map and the weights its Gauss weights
+    times the Jacobian (summing to 1): exact for polynomials of degree ``2k − 1`` in each
+    parameter, where the sub-cell centres are exact for degree 1.  For a field that falls off
+    steeply across the quad (a tube's light on the ceiling beside it, :math:`E ∝ (h^2 + y^2)^{-3/2}`
+    over ``y`` from 47 to 142 mm with ``h`` 30 mm) the centres of 3 × 3 cells are 6.5 % low, the
+    3 × 3 Gauss nodes 0.3 %.
+
+    >>> q = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]]])
+    >>> pts, w = quad_subpoints(q, 2, gauss=True)
+    >>> round(float(np.sum(w * pts[..., 0] ** 3)), 12)    # the mean of x³ over 0…2
+    2.0
     """
-    t = (np.arange(k) + 0.5) / k
+    if gauss:
+        x, gw = np.polynomial.legendre.leggauss(k)
+        t, wt = (x + 1.0) / 2.0, gw / 2.0
+    else:
+        t, wt = (np.arange(k) + 0.5) / k, np.ones(k)
     u, v = np.meshgrid(t, t, indexing="ij")
-    u, v = u.ravel(), v.ravel()
+    wu, wv = np.meshgrid(wt, wt, indexing="ij")
+    u, v, wuv = u.ravel(), v.ravel(), (wu * wv).ravel()
     p0, p1, p2, p3 = (polys[:, i][:, None, :] for i in range(4))
     pts = ((1 - u)[None, :, None] * (1 - v)[None, :, None] * p0 + u[None, :, None] * (1 - v)[None, :, None] * p1
            + u[None, :, None] * v[None, :, None] * p2 + (1 - u)[None, :, None] * v[None, :, None] * p3)
@@ -269,6 +285,8 @@ def quad_subpoints(polys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     du = (1 - v)[None, :, None] * (p1 - p0) + v[None, :, None] * (p2 - p3)
     dv = (1 - u)[None, :, None] * (p3 - p0) + u[None, :, None] * (p2 - p1)
     w = np.linalg.norm(np.cross(du, dv), axis=2)
+    if gauss:
+        w = w * wuv[None, :]
     w = w / np.maximum(w.sum(axis=1, keepdims=True), _EPS)
     return pts, w
 
@@ -1029,8 +1047,11 @@ def mirrored_front_part(rect: "Rectangle", centre, normal, eps_mm: float = 1e-6)
     elif rect.hole_half is not None:
         return None
     else:
-        axis, other, h, k = (u, v, hu, a) if abs(b) < 1e-9 else (v, u, hv, b) if abs(a) < 1e-9 else (None,) * 4
-        if axis is None:
+        if abs(b) < 1e-9:
+            axis, h, k = u, hu, a
+        elif abs(a) < 1e-9:
+            axis, h, k = v, hv, b
+        else:
             return None
         t0 = -d0 / k                                     # d0 + k t = 0 along the axis
         lo, hi = (max(t0, -h), h) if k > 0 else (-h, min(t0, h))
@@ -1041,6 +1062,22 @@ def mirrored_front_part(rect: "Rectangle", centre, normal, eps_mm: float = 1e-6)
         part = Rectangle(cen, np.asarray(rect.normal, float), u, half)
     return Rectangle(mirror_points(part.centre, c0, n), mirror_directions(part.normal, n),
                      mirror_directions(part.u, n), tuple(float(x) for x in part.half), part.hole_half)
+
+
+def mirrored_body(body, centre, normal):
+    """``body`` (a :class:`Capsule` or a :class:`Ball`; any other body unchanged) reflected across
+    the plane through ``centre`` with unit ``normal``: a body on a mirror image's first leg stands
+    there on the image's straight path (:func:`mirrored_front_part` does the same for occluders).
+
+    >>> b = mirrored_body(Ball(np.array([0.0, 0.0, 30.0]), 5.0), [0.0, 0.0, 10.0], [0.0, 0.0, 1.0])
+    >>> b.centre.tolist(), b.radius_mm
+    ([0.0, 0.0, -10.0], 5.0)
+    """
+    if isinstance(body, Capsule):
+        return replace(body, p0=mirror_points(body.p0, centre, normal), p1=mirror_points(body.p1, centre, normal))
+    if isinstance(body, Ball):
+        return replace(body, centre=mirror_points(body.centre, centre, normal))
+    return body
 
 
 def lamp_surface_distance_mm(lamps, points: np.ndarray) -> np.ndarray:

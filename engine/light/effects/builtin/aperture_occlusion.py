@@ -87,7 +87,8 @@ class ApertureOcclusionEffect(PhysicalEffect):
     def path_factors(ctx, p, es, rx):
         rects = ApertureOcclusionEffect._rects(ctx, p)
         blocked = None
-        plane = _mirror_plane(ctx, es)
+        # a mirror image (in a glass plate, a reflector): its mirror's plane, the normal toward the lamp
+        plane = es.meta.get("mirror_plane")
         for o, rect in rects:
             if o.lamps is not None and es.lamp_id not in o.lamps:
                 continue
@@ -103,19 +104,3 @@ class ApertureOcclusionEffect(PhysicalEffect):
             return None
         return [PathChannel(1.0 - blocked)]
 
-
-def _mirror_plane(ctx, es) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(point, normal)`` of the plane mirror whose image of a lamp ``es`` is (a diffuser plate's
-    top face, a reflector's facet), the normal toward the lamp's side; None for a lamp itself."""
-    if es.meta.get("plate_image") and ctx.ir.diffuser is not None:
-        from lbscene.engine.light.plates import plate_top_mm
-
-        return np.array([0.0, 0.0, plate_top_mm(ctx.ir)]), np.array([0.0, 0.0, 1.0])
-    rect = es.meta.get("mirror")
-    if rect is None:
-        return None
-    c, n = np.asarray(rect.centre, float), np.asarray(rect.normal, float)
-    # the images lie behind the mirror: the lamp's side is the other one
-    if float(np.mean((np.asarray(es.points_mm, float) - c) @ n)) > 0:
-        n = -n
-    return c, n

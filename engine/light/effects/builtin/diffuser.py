@@ -207,7 +207,7 @@ class DiffuserEffect(PhysicalEffect):
         return [es.with_(points_mm=pts, half_step=half, direction_map=partial(mirror_directions, normal=up),
                          tag="plate-image",
                          spectral_key=es.spectral_key + ("plate-reflection",),
-                         meta={**es.meta, "plate_image": True})]
+                         meta={**es.meta, "plate_image": True, "mirror_plane": (np.array([0.0, 0.0, z]), up)})]
 
     @classmethod
     def path_factors(cls, ctx, p, es, rx):

@@ -149,6 +149,10 @@ class ReflectorEffect(PhysicalEffect):
         for owner, refl, rect, facet in _mirrors(ctx, p):
             n = rect.normal
             pts = mirror_points(es.points_mm, rect.centre, n)
+            # the mirror's plane, its normal toward the lamp's side (the image's light comes from
+            # that side: aperture_occlusion mirrors what stands there on the image's path)
+            c = np.asarray(rect.centre, float)
+            toward = np.asarray(n, float) * (1.0 if float(np.mean((es.points_mm - c) @ n)) >= 0 else -1.0)
             R = np.clip(refl.reflectance.array_1nm * p.reflectance_scale, 0.0, 1.0)
             reflect = partial(mirror_directions, normal=n)
             half = None if es.half_step is None else mirror_directions(es.half_step, n)
@@ -158,8 +162,8 @@ class ReflectorEffect(PhysicalEffect):
             out.append(es.with_(points_mm=pts, spectrum_1nm=es.spectrum_1nm * R, half_step=half,
                                 spectral_key=es.spectral_key + (f"reflector:{owner.reflector}@{owner.id}",),
                                 direction_map=reflect, tag=tag,
-                                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id,
-                                      "mirror_facet": facet}))
+                                meta={**es.meta, "mirror": rect, "mirror_owner": owner.id,
+                                      "mirror_facet": facet, "mirror_plane": (c, toward)}))
         return out
 
     @staticmethod
@@ -167,7 +171,7 @@ class ReflectorEffect(PhysicalEffect):
         mirrors = _mirrors(ctx, p)
         if not mirrors:
             return None
-        from lbscene.engine.light.geometry import lamp_body
+        from lbscene.engine.light.geometry import lamp_body, mirrored_body
 
         lamp = ctx.ir.lamp(es.lamp_id)
         if es.tag.startswith("image:"):
@@ -185,7 +189,8 @@ class ReflectorEffect(PhysicalEffect):
             if owner.id != lamp.id and owner.mount == "booth":
                 ob = lamp_body(owner)
                 if ob is not None:
-                    f = f * ctx.fraction_past_body(es, rx, ob) * ctx.fraction_past_body(es, rx, _mirrored(ob, rect))
+                    f = f * ctx.fraction_past_body(es, rx, ob) * \
+                        ctx.fraction_past_body(es, rx, mirrored_body(ob, *es.meta["mirror_plane"]))
             return [PathChannel(f)]
         # the lamp's straight light: every mirror (its back absorbs) stops what meets it
         f = None
@@ -225,20 +230,6 @@ def _mirrors(ctx, p) -> list:
                 facet = None if len(rects) == 1 else k
                 out.append((lamp, refl, rect, facet))
     return out
-
-
-def _mirrored(body, rect):
-    """``body`` (a Capsule or a Ball; others unchanged) reflected across the plane of ``rect``."""
-    from dataclasses import replace
-
-    from lbscene.engine.light.geometry import Ball, Capsule, mirror_points
-
-    if isinstance(body, Capsule):
-        return replace(body, p0=mirror_points(body.p0, rect.centre, rect.normal),
-                       p1=mirror_points(body.p1, rect.centre, rect.normal))
-    if isinstance(body, Ball):
-        return replace(body, centre=mirror_points(body.centre, rect.centre, rect.normal))
-    return body
 
 
 def _fraction_through_facet(ctx, es, rx, rect) -> np.ndarray:
