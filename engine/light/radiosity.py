@@ -101,7 +101,7 @@ GATHER_FINE = 12
 #: the mean over NEAR_SUB² Gauss points of it …
 NEAR_SUB = 3
 NEAR_DIAGONALS = 1.5
-#: … within MID_DIAGONALS over 2 × 2 Gauss points (beyond, the patch's centre).  The light of a
+#: … within MID_DIAGONALS over MID_SUB² Gauss points (beyond, the patch's centre).  The light of a
 #: lamp falls off steeply across a patch beside it, and the centre misses that: a tube 30 mm
 #: under a ceiling lights a 95 mm patch 1.5 to 8 diagonals away 11 % to 0.4 % above its centre's
 #: value (2 × 2 Gauss points: 0.5 % to 0.01 %).  In the SpectraLight's white luminaire cavity the
@@ -109,6 +109,7 @@ NEAR_DIAGONALS = 1.5
 #: (with the ceiling cut at the dark UV tube, :func:`refine_near_lamps`: the sample's light on
 #: 100 mm patches within 0.04 % of 50 mm ones, and 0.1 % from a Cycles bake at final quality)
 MID_DIAGONALS = 8.0
+MID_SUB = 2
 #: box patches are split while their diagonal exceeds this times their distance to a lit lamp …
 REFINE_RATIO = 1.5
 #: relative step to which the fitted numbers that shape lamp light are rounded for the light
@@ -225,10 +226,11 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
         # the floor: finer where a tube or a bulb is the nearest lamp (mirrors: min_size_mm)
         floor = np.where(lamp_surface_distance_mm(bodies, c) <= dist, min_body_mm, min_size_mm) if bodies \
             else min_size_mm
-        split = (near & (diag > floor * np.sqrt(2) * 2)) | (
-            (diag > MIRROR_REFINE_RATIO * d_mirror) & (diag > min_size_mm * np.sqrt(2) * 2))
+        # a split's quarters keep at least the floor's width (a square's diagonal: √2 × it)
+        splittable = diag > min_size_mm * np.sqrt(2) * 2
+        split = (near & (diag > floor * np.sqrt(2) * 2)) | ((diag > MIRROR_REFINE_RATIO * d_mirror) & splittable)
         if d_dark is not None:
-            split |= (diag > ratio * d_dark) & (diag > DARK_LIT_RATIO * dist) & (diag > min_size_mm * np.sqrt(2) * 2)
+            split |= (diag > ratio * d_dark) & (diag > DARK_LIT_RATIO * dist) & splittable
         keep = ~split
         done_p.append(P[keep]); done_n.append(N[keep]); done_m.append(M[keep]); done_s.append(S[keep])
         if not split.any():
@@ -801,7 +803,7 @@ class RadiosityTransport:
         # occluders (a lamp box's walls, all of them near its lamp) at 2 × 2 points
         occ = np.char.startswith(patches.surface.astype(str), "occluder:")
         idx, pts_l, w_l, nrm_l = [], [], [], []
-        for k, sel in ((1, ~near & ~mid), (2, mid), (NEAR_SUB, near & ~occ), (OCCLUDER_NEAR_SUB, near & occ)):
+        for k, sel in ((1, ~near & ~mid), (MID_SUB, mid), (NEAR_SUB, near & ~occ), (OCCLUDER_NEAR_SUB, near & occ)):
             if not sel.any():
                 continue
             pts, w = quad_subpoints(patches.polys[sel], k, gauss=True)
@@ -1163,23 +1165,27 @@ class RadiosityTransport:
         if k not in store:
             P = len(self.patches)
             r, T, Rm = self._class_parts(u)
-            Fu = self._F_band(T, Rm)
             # the last few factored classes an update may start from, those with these form
             # factors among them (each holds an n × n factorisation: bounded apart from the store)
             bases = self.ctx.cache.setdefault("_rad_lu_bases", {})
             bk = (self._patch_key, self._body_digest.tobytes(), None if T is None else float(T), Rm.tobytes())
             base = None
-            for (bk_, _), b in bases.items():
+            for (bk_, k_), b in bases.items():
                 if bk_ != bk:
                     continue
                 n_diff = int(np.count_nonzero(b.r != r))
                 if n_diff <= LOW_RANK_MAX_FRACTION * P and (base is None or n_diff < base[1]):
-                    base = (b, n_diff)
+                    base = (b, n_diff, (bk_, k_))
             if len(store) >= 64:
                 store.pop(next(iter(store)))
             if base is not None:
-                store[k] = _LowRankSolver(base[0], r, Fu)
+                # the base's rows of these form factors are kept with it: the band's form factors
+                # (past the plate, its images) are built only for a new patch set
+                known = _LowRankSolver.rows_known(base[0], r)
+                store[k] = _LowRankSolver(base[0], r, None if known else self._F_band(T, Rm))
+                bases[base[2]] = bases.pop(base[2])          # the least recently used go first
             else:
+                Fu = self._F_band(T, Rm)
                 store[k] = _LUSolver(lu_factor(np.eye(P) - r[:, None] * Fu), r)
                 if len(bases) >= LOW_RANK_BASES:
                     bases.pop(next(iter(bases)))
@@ -1619,8 +1625,12 @@ class RadiosityTransport:
 
 
 #: the largest share of the patches whose reflectance may differ from an already factored band
-#: class for :class:`_LowRankSolver` to take its place
-LOW_RANK_MAX_FRACTION = 0.5
+#: class for :class:`_LowRankSolver` to take its place.  On 1305 patches (the SpectraLight; one
+#: thread, 40 right-hand sides) an update's later steps took 12, 25, 36 and 53 ms at a share of
+#: 0.3, 0.5, 0.75 and 0.9 against 80 to 105 ms for a new LU, its first step 1.2 to 2.3 times a new
+#: LU (its k solves): a refit's tens of steps gain up to 0.75 (the SpectraLight's ceiling and its
+#: cavity's: 0.51 of the patches)
+LOW_RANK_MAX_FRACTION = 0.75
 #: factored band classes kept as starting points of low-rank updates (besides the solver store)
 LOW_RANK_BASES = 16
 
@@ -1630,7 +1640,9 @@ class _LUSolver:
 
     def __init__(self, lu, r):
         self.lu, self.r = lu, np.asarray(r, float)
-        self._updates = {}           # patch sets S → (A⁻¹ E_S, A⁻ᵀ F_Sᵀ), for _LowRankSolver
+        #: patch sets S → {"F_S": rows S of F, "P": A⁻¹ E_S, "Q": A⁻ᵀ F_Sᵀ, "FSP": F_S A⁻¹ E_S},
+        #: for :class:`_LowRankSolver` (each made once, when first needed)
+        self._updates = {}
 
     def solve(self, b, trans: int = 0):
         from scipy.linalg import lu_solve
@@ -1657,26 +1669,38 @@ class _LowRankSolver:
     the :math:`n \\times n` matrix each time (the SpectraLight's ceiling: 25 factorisations per
     refit)."""
 
-    def __init__(self, base: _LUSolver, r, F):
+    def __init__(self, base: _LUSolver, r, F=None):
         self.base = base
         self.r = np.asarray(r, float)
         S = np.nonzero(self.r != base.r)[0]
         self.S = S
         self.d = (self.r - base.r)[S]
-        self.F_S = F[S]
         self._skey = S.tobytes()
+        upd = base._updates.setdefault(self._skey, {})
+        if "F_S" not in upd:
+            if F is None:
+                raise ValueError("the form factors are needed for a new patch set")
+            upd["F_S"] = np.ascontiguousarray(np.asarray(F)[S])
+        self._upd = upd
+        self.F_S = upd["F_S"]
         self._small = {}
 
+    @staticmethod
+    def rows_known(base: _LUSolver, r) -> bool:
+        """Whether ``base`` keeps the form factors' rows for the patches where ``r`` differs."""
+        S = np.nonzero(np.asarray(r, float) != base.r)[0]
+        return "F_S" in base._updates.get(S.tobytes(), {})
+
     def _PQ(self, trans: int):
-        hit = self.base._updates.setdefault(self._skey, [None, None])
-        if hit[trans] is None:
+        name = "Q" if trans else "P"
+        if name not in self._upd:
             if trans:
-                hit[1] = self.base.solve(self.F_S.T, trans=1)               # (n, k)
+                self._upd["Q"] = self.base.solve(self.F_S.T, trans=1)          # (n, k)
             else:
                 E = np.zeros((len(self.base.r), self.S.size))
                 E[self.S, np.arange(self.S.size)] = 1.0
-                hit[0] = self.base.solve(E)                                 # (n, k)
-        return hit[trans]
+                self._upd["P"] = self.base.solve(E)                            # (n, k)
+        return self._upd[name]
 
     def solve(self, b, trans: int = 0):
         from scipy.linalg import lu_factor, lu_solve
@@ -1687,8 +1711,14 @@ class _LowRankSolver:
         W = self._PQ(trans)
         if trans not in self._small:
             k = self.S.size
-            M = np.eye(k) - self.d[:, None] * (W[self.S] if trans else self.F_S @ W)
-            self._small[trans] = lu_factor(M)
+            if trans:
+                K = W[self.S]
+            else:
+                # F_S A⁻¹ E_S depends on the patch set only: kept with the base (k² n once)
+                if "FSP" not in self._upd:
+                    self._upd["FSP"] = self.F_S @ W
+                K = self._upd["FSP"]
+            self._small[trans] = lu_factor(np.eye(k) - self.d[:, None] * K)
         v = y[self.S] if trans else self.F_S @ y
         rhs = (self.d[:, None] if v.ndim == 2 else self.d) * v
         return y + W @ lu_solve(self._small[trans], rhs)

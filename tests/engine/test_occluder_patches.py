@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from booth_text import write_booth
 
 from lbscene.engine.scene.compile import compile_booth
 from lbscene.engine.light.effects.builtin.aperture_occlusion import ApertureOcclusionEffect
@@ -132,6 +133,103 @@ def test_the_low_rank_update_of_a_factored_radiosity_matrix_solves_the_moved_one
     assert np.allclose(again.solve(b, trans=1), np.linalg.solve((np.eye(n) - again.r[:, None] * F).T, b),
                        rtol=1e-11, atol=1e-13)
     assert len(base._updates) == 1
+
+
+def test_a_low_rank_update_keeps_its_patch_sets_rows_with_the_base():
+    """An update of most of the patches (60 %: the SpectraLight's ceiling and its cavity's are 51
+    %) solves exactly; a later reflectance set on the same patches needs no form factors (the
+    base keeps their rows), and its products of the patch set are made once."""
+    from scipy.linalg import lu_factor
+
+    from lbscene.engine.light.radiosity import LOW_RANK_MAX_FRACTION, _LowRankSolver, _LUSolver
+
+    rng = np.random.default_rng(11)
+    n = 120
+    F = rng.random((n, n))
+    np.fill_diagonal(F, 0.0)
+    F *= 0.95 / F.sum(axis=1, keepdims=True)
+    r = np.full(n, 0.8)
+    base = _LUSolver(lu_factor(np.eye(n) - r[:, None] * F), r)
+    moved = rng.choice(n, int(0.6 * n), replace=False)
+    assert moved.size > 0.5 * n and moved.size <= LOW_RANK_MAX_FRACTION * n
+    b = rng.random((n, 4))
+    for value in (0.55, 0.9, 0.3):
+        r2 = r.copy()
+        r2[moved] = value
+        first = not _LowRankSolver.rows_known(base, r2)
+        upd = _LowRankSolver(base, r2, F if first else None)
+        A2 = np.eye(n) - r2[:, None] * F
+        assert np.allclose(upd.solve(b), np.linalg.solve(A2, b), rtol=1e-11, atol=1e-13)
+        assert np.allclose(upd.solve(b, trans=1), np.linalg.solve(A2.T, b), rtol=1e-11, atol=1e-13)
+        assert first == (value == 0.55)
+    kept = base._updates[np.sort(moved).tobytes()]
+    assert set(kept) == {"F_S", "P", "Q", "FSP"}
+    # a patch set the base has not seen needs the form factors
+    r3 = r.copy()
+    r3[:7] = 0.1
+    with pytest.raises(ValueError, match="the form factors are needed for a new patch set"):
+        _LowRankSolver(base, r3)
+
+
+def test_a_fit_moving_the_ceiling_refactors_no_band_class_after_its_first_step(tmp_path):
+    """A box whose ceiling, cut finer above the tubes, holds most of the patches (56 %), 16
+    band classes (a reflectance that changes across the spectrum): after the first step of a fit
+    moving the ceiling's reflectance, every band class is solved from its factors as a low-rank
+    update, no n × n matrix factored again (they were, at every step, while an update was
+    limited to half the patches: the SpectraLight's ceiling is 51 % of its), and the light at the
+    receivers equals a fresh solve's."""
+    import scipy.linalg
+
+    from lbscene.engine.light.forward import ForwardModel
+
+    ir = _box_with_sloped_reflectance(tmp_path)
+    [rt] = ForwardModel(ir, "L").global_transports()
+    n = len(rt.patches)
+    share = np.mean(rt.patches.surface.astype(str) == "ceiling")
+    assert 0.5 < share < 0.7, share
+    x, y = np.meshgrid(np.linspace(-250, 250, 5), np.linspace(-180, 180, 4))
+    P = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    sizes = []
+    real = scipy.linalg.lu_factor
+
+    def counting(a, *args, **kw):
+        sizes.append(len(a))
+        return real(a, *args, **kw)
+
+    def lux(scale, cache):
+        eff = {**{k: dict(v) for k, v in ir.effects.items()}, "surface_reflectance": {"ceiling_scale": scale}}
+        pred = ForwardModel(ir, "L", effects=eff, cache=cache).predict(P, N, np.ones(len(P), bool))
+        return sum(pred.lux_by_group().values())
+
+    shared: dict = {}
+    moved = {}
+    scipy.linalg.lu_factor = counting
+    try:
+        lux(1.0, shared)
+        moved[0.9] = lux(0.9, shared)                  # the bases: one factorisation per class
+        assert sizes.count(n) >= 16
+        for scale in (0.95, 1.05, 0.8):
+            sizes.clear()
+            moved[scale] = lux(scale, shared)
+            assert sizes and n not in sizes, (scale, sizes)
+    finally:
+        scipy.linalg.lu_factor = real
+    for scale, got in moved.items():
+        assert np.allclose(got, lux(scale, {}), rtol=1e-10, atol=0), scale
+
+
+def _box_with_sloped_reflectance(folder):
+    """A 700 × 500 × 600 mm box, open at the front, walls whose reflectance rises across the
+    spectrum (one band class per band), two bare tubes under the ceiling."""
+    tube = ("{{id: {id}, type: tube, position_mm: [{x}, 0, 560], axis: [0, 1, 0], length_mm: 420, radius_mm: 13, "
+            "spd: {{type: cie_illuminant, name: D65}}, output: {{type: luminance_cd_m2, value_cd_m2: 12000}}}}")
+    return compile_booth(write_booth(
+        folder, name="walls most of the patches",
+        interior="{type: box, width_mm: 700, depth_mm: 500, height_mm: 600, open_front: true}",
+        materials="{wall: {type: diffuse, reflectance: {type: inline, wavelengths_nm: [380, 780], "
+                  "values: [0.6, 0.9]}}}",
+        lamps=[tube.format(id="a", x=-140), tube.format(id="b", x=140)], lighting="{L: {lamps: [a, b]}}"))
 
 
 @pytest.mark.slow

@@ -4,10 +4,9 @@ where the patch lattice falls)."""
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import pytest
+from booth_text import write_booth
 
 from lbscene.engine.light.geometry import quad_subpoints
 from lbscene.engine.scene.compile import compile_booth
@@ -42,27 +41,13 @@ def _rect_solid_angle(x1, x2, y1, y2, h):
 
 
 def _bulb_booth(tmp_path, gap_mm: float):
-    d = tmp_path / "bulb"
-    d.mkdir()
-    (d / "booth.yaml").write_text(textwrap.dedent(f"""\
-        version: 1
-        kind: booth
-        name: quadrature test
-        provenance: {{status: synthetic, source: "lbscene tests"}}
-        interior: {{type: box, width_mm: 1000, depth_mm: 600, height_mm: 700}}
-        materials:
-          wall: {{type: diffuse, reflectance: {{type: constant, value: 0.5}}}}
-        surfaces: {{floor: wall, left_wall: wall, right_wall: wall, rear_wall: wall, ceiling: wall}}
-        lamps:
-          - {{id: b, type: bulb, position_mm: [37, -23, {700 - gap_mm}], radius_mm: 2,
-              spd: {{type: constant, value: 1}}, output: {{type: luminous_flux_lm, value_lm: 1000}},
-              profile: {{type: isotropic}}}}
-        lighting:
-          L: {{lamps: [b]}}
-        effects: {{interreflection: {{}}}}
-        observer: {{type: eye_point, position_mm: [0, -900, 500]}}
-        """))
-    return compile_booth(d)
+    return compile_booth(write_booth(
+        tmp_path / "bulb", name="quadrature test",
+        interior="{type: box, width_mm: 1000, depth_mm: 600, height_mm: 700}",
+        lamps=[f"{{id: b, type: bulb, position_mm: [37, -23, {700 - gap_mm}], radius_mm: 2, "
+               "spd: {type: constant, value: 1}, output: {type: luminous_flux_lm, value_lm: 1000}, "
+               "profile: {type: isotropic}}"],
+        lighting="{L: {lamps: [b]}}"))
 
 
 def test_first_order_light_on_ceiling_patches_is_the_solid_angle_they_fill(tmp_path):
@@ -94,29 +79,15 @@ def test_first_order_light_on_ceiling_patches_is_the_solid_angle_they_fill(tmp_p
 
 
 def _tubes_booth(tmp_path, lit: str):
-    d = tmp_path / f"tubes-{lit}"
-    d.mkdir()
-    (d / "booth.yaml").write_text(textwrap.dedent(f"""\
-        version: 1
-        kind: booth
-        name: dark body test
-        provenance: {{status: synthetic, source: "lbscene tests"}}
-        interior: {{type: box, width_mm: 900, depth_mm: 600, height_mm: 700}}
-        materials:
-          white: {{type: diffuse, reflectance: {{type: constant, value: 0.85}}}}
-          grey: {{type: diffuse, reflectance: {{type: constant, value: 0.3}}}}
-        surfaces: {{floor: grey, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: white}}
-        lamps:
-          - {{id: on, type: tube, position_mm: [0, -65, 670], axis: [1, 0, 0], length_mm: 600, radius_mm: 13,
-              spd: {{type: constant, value: 1}}, output: {{type: luminance_cd_m2, value_cd_m2: 20000}}}}
-          - {{id: off, type: tube, position_mm: [0, 0, 670], axis: [1, 0, 0], length_mm: 600, radius_mm: 13,
-              spd: {{type: constant, value: 1}}, output: {{type: luminance_cd_m2, value_cd_m2: 20000}}}}
-        lighting:
-          L: {{lamps: [{lit}]}}
-        effects: {{interreflection: {{}}}}
-        observer: {{type: eye_point, position_mm: [0, -900, 500]}}
-        """))
-    return compile_booth(d)
+    tube = ("{{id: {id}, type: tube, position_mm: [0, {y}, 670], axis: [1, 0, 0], length_mm: 600, radius_mm: 13, "
+            "spd: {{type: constant, value: 1}}, output: {{type: luminance_cd_m2, value_cd_m2: 20000}}}}")
+    return compile_booth(write_booth(
+        tmp_path / f"tubes-{lit}", name="dark body test",
+        materials="{white: {type: diffuse, reflectance: {type: constant, value: 0.85}}, "
+                  "grey: {type: diffuse, reflectance: {type: constant, value: 0.3}}}",
+        surfaces="{floor: grey, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: white}",
+        lamps=[tube.format(id="on", y=-65), tube.format(id="off", y=0)],
+        lighting=f"{{L: {{lamps: [{lit}]}}}}"))
 
 
 def test_the_ceiling_is_refined_at_a_dark_tube_that_hides_it():
