@@ -219,6 +219,41 @@ def test_a_fit_moving_the_ceiling_refactors_no_band_class_after_its_first_step(t
         assert np.allclose(got, lux(scale, {}), rtol=1e-10, atol=0), scale
 
 
+def test_a_fitted_diffuse_fraction_is_solved_on_its_own_plates_factors(tmp_path):
+    """A fit moving an opal plate's diffuse fraction changes the plate's reflectance alone, but
+    also its layer's transfer between its faces: an update of another plate's factors solved the
+    wrong matrix (the light at the floor 1.7 % and 5.6 % off a fresh solve for fractions 0.8 and
+    0.6 in the opal cavity); the light with a shared cache equals a fresh solve's."""
+    from lbscene.engine.light.forward import ForwardModel
+
+    tube = ("{{id: {id}, type: tube, position_mm: [0, {y}, 630], axis: [1, 0, 0], length_mm: 600, radius_mm: 13, "
+            "spd: {{type: constant, value: 1}}, output: {{type: luminance_cd_m2, value_cd_m2: 15000}}}}")
+    ir = compile_booth(write_booth(
+        tmp_path, name="opal plate under a white cavity",
+        interior="{type: box, width_mm: 800, depth_mm: 500, height_mm: 680, open_front: true}",
+        materials="{grey: {type: diffuse, reflectance: {type: constant, value: 0.45}}, "
+                  "white: {type: diffuse, reflectance: {type: constant, value: 0.8}}}",
+        surfaces="{floor: grey, left_wall: grey, right_wall: grey, rear_wall: grey, ceiling: white}",
+        lamps=[tube.format(id="a", y=-120), tube.format(id="b", y=120)], lighting="{L: {lamps: [a, b]}}",
+        diffuser="{z_mm: 590, size_mm: [800, 500], thickness_mm: 2.5, ior: 1.0, "
+                 "transmittance: {type: constant, value: 0.6}, "
+                 "scattering: {type: lambertian, diffuse_fraction: 0.92}}",
+        effects="{diffuser: {}, interreflection: {}}"))
+    x, y = np.meshgrid(np.linspace(-300, 300, 4), np.linspace(-180, 180, 3))
+    P = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+
+    def lux(fraction, cache):
+        eff = {"diffuser": {"diffuse_fraction": fraction}, "interreflection": {}}
+        pred = ForwardModel(ir, "L", effects=eff, cache=cache).predict(P, N, np.ones(len(P), bool))
+        return sum(pred.lux_by_group().values())
+
+    shared: dict = {}
+    lux(0.92, shared)
+    for fraction in (0.8, 0.6):
+        assert np.allclose(lux(fraction, shared), lux(fraction, {}), rtol=1e-10, atol=0), fraction
+
+
 def _box_with_sloped_reflectance(folder):
     """A 700 × 500 × 600 mm box, open at the front, walls whose reflectance rises across the
     spectrum (one band class per band), two bare tubes under the ceiling."""
