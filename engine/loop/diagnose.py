@@ -80,7 +80,8 @@ BOOTSTRAP_SAMPLES = 2000
 STABLE_SHARE = 0.5
 #: least_squares xtol/ftol of the scoring refits: χ² (≈ n) to ~0.01 unit, far below the BIC
 #: margins; 1e-8 made weakly identified candidates (tube-end falloff: level and length) crawl
-#: along their valley for 400+ evaluations without changing the score.
+#: along their valley for 400+ evaluations without changing the score.  A search these stop short
+#: of its minimum is continued (:data:`~lbscene.engine.loop.fit.STALL_GAIN_CHI2`).
 SCORING_TOLERANCE = 1e-4
 #: the same for the refits of a geometry's profile points: χ² to ~0.05 unit, far below the Δχ²
 #: of 1 its curvature and uncertainty are read at (a third of their evaluations)
