@@ -577,8 +577,6 @@ class FitProblem:
         each step).  ``errors=False`` skips the finite-difference Jacobian of the standard errors
         (one forward evaluation per non-linear parameter): for fits only compared by χ², such as
         the points of a profile, of which only the one kept needs them (:meth:`add_errors`)."""
-        from scipy.optimize import least_squares
-
         from lbscene.engine.light.forward import blas_single_thread
 
         if self.n_residuals < len(self.free) + 1:
@@ -595,41 +593,80 @@ class FitProblem:
             hi = np.array([self.free[i].bounds[1] for i in self.nl], float)
             x0 = np.clip(np.array([self.free[i].initial for i in self.nl], float),
                          lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-            opts = dict(bounds=(lo, hi), method="trf", x_scale=np.maximum(hi - lo, 1e-9) * 0.1,
-                        jac=lambda x: self._jacobian(x, lo, hi), xtol=self.tolerance, ftol=self.tolerance,
-                        max_nfev=MAX_EVALUATIONS)
-            sol = least_squares(self.residuals, x0, **opts)
+            x, sol = self._search(x0, self._jacobian(x0, lo, hi), lo, hi)
             for _ in range(STALL_RESTARTS):
                 # stopped by a step tolerance with its own Jacobian promising more: go on from there
-                if sol.status not in (2, 3, 4):
+                if sol is None or sol.status not in (2, 3, 4):
                     break
-                promised = predicted_gain_chi2(sol.jac, sol.fun, lo - sol.x, hi - sol.x)
+                J = self._jacobian(x, lo, hi, known=sol.jac, moved=sol.moved)
+                promised = predicted_gain_chi2(J, sol.fun, lo - x, hi - x)
                 if promised <= STALL_GAIN_CHI2:
                     break
-                more = least_squares(self.residuals, sol.x, **opts)
-                gained = 2.0 * (sol.cost - more.cost)
+                x2, more = self._search(x, J, lo, hi)
+                gained = 2.0 * (sol.cost - more.cost) if more is not None else 0.0
                 if gained > 0.0:
-                    sol = more
+                    x, sol = x2, more
                 if gained < STALL_PROGRESS * promised:
                     break                 # the promise was the linear model's, not the booth's
-            A, T, *_ = self.components(sol.x)
-            return self._result(sol.x, self.scales_for(A, T), bool(sol.success), str(sol.message),
+            A, T, *_ = self.components(x)
+            if sol is None:
+                return self._result(x, self.scales_for(A, T), True, "no free parameter moves the readings",
+                                    fitted=True, errors=errors)
+            return self._result(x, self.scales_for(A, T), bool(sol.success), str(sol.message),
                                 fitted=True, errors=errors)
 
-    def _jacobian(self, x, lo, hi) -> np.ndarray:
+    def _search(self, x_start, J_start, lo, hi):
+        """One least-squares search from ``x_start`` over the parameters that move the readings
+        there (a non-zero column of its Jacobian ``J_start``): ``(x, solution)``, the solution
+        ``None`` when none does.  The others stay where they are: a search moves a parameter of
+        a zero column too (the bounds' scaling and reflections), and there it follows rounding."""
+        from scipy.optimize import least_squares
+
+        x_start = np.asarray(x_start, float)
+        moved = np.nonzero(np.any(J_start != 0.0, axis=0))[0]
+        if not moved.size:
+            return x_start, None
+
+        def full(z):
+            x = x_start.copy()
+            x[moved] = z
+            return x
+
+        start = x_start[moved].copy()
+
+        def jac(z):
+            if np.array_equal(z, start):
+                return J_start[:, moved]
+            return self._jacobian(full(z), lo, hi, cols=moved)[:, moved]
+
+        sol = least_squares(lambda z: self.residuals(full(z)), start, bounds=(lo[moved], hi[moved]), method="trf",
+                            x_scale=np.maximum(hi - lo, 1e-9)[moved] * 0.1, jac=jac, xtol=self.tolerance,
+                            ftol=self.tolerance, max_nfev=MAX_EVALUATIONS)
+        sol.moved = moved
+        return full(sol.x), sol
+
+    def _jacobian(self, x, lo, hi, cols=None, known=None, moved=None) -> np.ndarray:
         """Forward differences of the residuals, a step of :data:`DIFF_STEP` × max(1, |x|) (away
-        from a bound it would cross).  A parameter that moves no residual by
-        :data:`FLAT_RESIDUAL` gets an exactly zero column: the search leaves it where it is."""
+        from a bound it would cross), in the columns ``cols`` (all; or those not in ``moved``, whose
+        columns ``known`` gives).  A parameter that moves no residual by :data:`FLAT_RESIDUAL`
+        gets an exactly zero column: the search leaves it where it is (:meth:`_search`)."""
         x = np.asarray(x, float)
-        r0 = self.residuals(x)
-        J = np.zeros((r0.size, x.size))
-        for i in range(x.size):
+        if known is not None:
+            cols = [i for i in range(x.size) if i not in set(int(m) for m in moved)]
+        steps = []
+        for i in (range(x.size) if cols is None else cols):
             h = DIFF_STEP * max(1.0, abs(float(x[i])))
             if x[i] + h > hi[i] and x[i] - h >= lo[i]:
                 h = -h
             xi = x.copy()
             xi[i] += h
-            d = self.residuals(xi) - r0
+            steps.append((i, h, self.residuals(xi)))
+        r0 = self.residuals(x)            # last: the search's first evaluation, at x, reads it again
+        J = np.zeros((r0.size, x.size))
+        if known is not None:
+            J[:, moved] = known
+        for i, h, r in steps:
+            d = r - r0
             if np.max(np.abs(d), initial=0.0) >= FLAT_RESIDUAL:
                 J[:, i] = d / h
         return J
