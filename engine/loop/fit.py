@@ -598,7 +598,8 @@ class FitProblem:
                 # stopped by a step tolerance with its own Jacobian promising more: go on from there
                 if sol is None or sol.status not in (2, 3, 4):
                     break
-                J = self._jacobian(x, lo, hi, known=sol.jac, moved=sol.moved)
+                J = self._jacobian(x, lo, hi, cols=np.setdiff1d(np.arange(x.size), sol.moved))
+                J[:, sol.moved] = sol.jac                  # the search's own, at x
                 promised = predicted_gain_chi2(J, sol.fun, lo - x, hi - x)
                 if promised <= STALL_GAIN_CHI2:
                     break
@@ -645,14 +646,12 @@ class FitProblem:
         sol.moved = moved
         return full(sol.x), sol
 
-    def _jacobian(self, x, lo, hi, cols=None, known=None, moved=None) -> np.ndarray:
+    def _jacobian(self, x, lo, hi, cols=None) -> np.ndarray:
         """Forward differences of the residuals, a step of :data:`DIFF_STEP` × max(1, |x|) (away
-        from a bound it would cross), in the columns ``cols`` (all; or those not in ``moved``, whose
-        columns ``known`` gives).  A parameter that moves no residual by :data:`FLAT_RESIDUAL`
+        from a bound it would cross), in the columns ``cols`` (all by default; the others zero).
+        A parameter that moves no residual by :data:`FLAT_RESIDUAL`
         gets an exactly zero column: the search leaves it where it is (:meth:`_search`)."""
         x = np.asarray(x, float)
-        if known is not None:
-            cols = [i for i in range(x.size) if i not in set(int(m) for m in moved)]
         steps = []
         for i in (range(x.size) if cols is None else cols):
             h = DIFF_STEP * max(1.0, abs(float(x[i])))
@@ -663,8 +662,6 @@ class FitProblem:
             steps.append((i, h, self.residuals(xi)))
         r0 = self.residuals(x)            # last: the search's first evaluation, at x, reads it again
         J = np.zeros((r0.size, x.size))
-        if known is not None:
-            J[:, moved] = known
         for i, h, r in steps:
             d = r - r0
             if np.max(np.abs(d), initial=0.0) >= FLAT_RESIDUAL:
