@@ -111,7 +111,13 @@ _BLAS = None
 
 def blas_single_thread():
     """Context limiting BLAS to one thread: the model's matrices are small, and threaded BLAS
-    on a loaded 2-core machine spin-waits (a 255² LU took 80 ms threaded, 1 ms single)."""
+    on a loaded 2-core machine spin-waits (a 255² LU took 80 ms threaded, 1 ms single).
+
+    Every BLAS the model calls is limited: numpy's and scipy's (each wheel brings its own
+    OpenBLAS).  The controller knows the libraries loaded when it is made, so scipy's linear
+    algebra is loaded first: made before it, the controller left scipy's LU factorisations
+    threaded, and two forked refits each running them on two threads took three times as long
+    as one after the other."""
     import contextlib
 
     global _BLAS
@@ -120,5 +126,7 @@ def blas_single_thread():
     except ImportError:  # optional: without it BLAS keeps its default threads
         return contextlib.nullcontext()
     if _BLAS is None:
+        import scipy.linalg  # noqa: F401  (its BLAS among the libraries the controller limits)
+
         _BLAS = ThreadpoolController()
     return _BLAS.limit(limits=1)

@@ -55,6 +55,8 @@ from typing import Literal
 
 import numpy as np
 
+from lbscene.engine.files.parallel import map_forked, process_count
+
 from .fit import (GOF_ALPHA, NOISE_Z, FitProblem, FitResult, _spectral_parameters, _tile_consistent,  # noqa: F401
                   chi2_limit, consistent_with_noise, effect_parameter, readings_consistent, spectral_parameters)
 from .hypotheses import HYPOTHESES, applicable_hypotheses, profile_geometry
@@ -900,10 +902,35 @@ def _not_profiled_note(fit: FitResult) -> str:
     return f"# hypothesis: {why}\n" if why else ""
 
 
+def _side_by_side(b: _Base, items: list[tuple[str, ...]], rival: float | None = None) -> dict:
+    """``{items: _refit(b, items, rival)}``, the refits run side by side in processes forked from
+    this one (:func:`~lbscene.engine.files.parallel.map_forked`); ``{}`` when there are fewer than
+    two or one process only (then each is refitted where the loop reaches it, as before).  Only
+    refits whose result cannot depend on the ones before them are given here: each is what the
+    loop would compute at its turn, from the same base fit, started from the same values."""
+    if len(items) < 2 or process_count() < 2:
+        return {}
+    return dict(zip(items, map_forked(lambda it: _refit(b, it, rival), items)))
+
+
+def _profiles_geometry(b: _Base, item: str) -> bool:
+    """Whether refitting ``item`` alone profiles a hypothesis' geometry (:func:`profile_geometry`:
+    its own refits forked side by side, and skipped against a rival, :func:`_cannot_rival`)."""
+    H = _hypothesis(item)
+    return H is not None and H.channel == "spatial" and bool(H.geometry(_configure(b, (item,))[0], b.lighting))
+
+
 def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
                    skipped: dict[str, str]) -> list[Suspect]:
     """Every candidate on its own, best first; hardware whose refit cannot change the verdict
-    (:func:`_beyond_reach`) is added to ``skipped`` with why."""
+    (:func:`_beyond_reach`) is added to ``skipped`` with why.
+
+    What the order decides (hardware refitted only when something before it helps, the rival
+    explanation hardware is weighed against) is decided in the order below; the refits it does
+    not decide run side by side (:func:`_side_by_side`): first every candidate that is not
+    hardware of the spatial channel, then, at the first such hardware, the hardware without a
+    geometry to profile that is still within reach of the rival.  A rival only grows as the
+    loop goes on, so hardware out of reach there stays out of reach."""
     # hardware the file does not declare is hypothesised only when the booth as declared leaves
     # something to explain: its residual above the noise, or a catalog effect that helps
     suspects = []
@@ -912,12 +939,21 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
         H = _hypothesis(item)
         return H is not None and H.hardware and H.channel == "spatial"
 
+    def hardware(item):
+        H = _hypothesis(item)
+        return H is not None and H.hardware
+
     # hardware with a geometry to profile last: the explanations before it may make its profile
     # moot (_cannot_rival), or the hardware itself (_beyond_reach)
     order = [i for i in todo if not spatial_hardware(i)] + [i for i in todo if spatial_hardware(i)]
+    # with the booth consistent, hardware is refitted only after a helpful explanation: in order
+    first = [(i,) for i in order if not spatial_hardware(i) and not (consistent and hardware(i))]
+    if progress and len(first) > 1:
+        progress(0, len(order), ", ".join(i for i, in first))
+    ready = _side_by_side(b, first)
+    spatial_started = False
     for k, item in enumerate(order):
-        if (H := _hypothesis(item)) is not None and H.hardware \
-                and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
+        if hardware(item) and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
             continue
         if progress:
             progress(k, len(order), item)
@@ -925,7 +961,13 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
         if spatial_hardware(item) and (why := _beyond_reach(b, item, rival)):
             skipped[item] = why
             continue
-        s_ = _refit(b, (item,), rival)
+        if spatial_hardware(item) and not spatial_started:
+            spatial_started = True
+            later = [(i,) for i in order[k:] if not _profiles_geometry(b, i) and not _beyond_reach(b, i, rival)]
+            if progress and len(later) > 1:
+                progress(k, len(order), ", ".join(i for i, in later))
+            ready.update(_side_by_side(b, later, rival))
+        s_ = ready.pop((item,)) if (item,) in ready else _refit(b, (item,), rival)
         if s_ is not None:
             suspects.append(s_)
     suspects.sort(key=lambda s: -s.score)
@@ -934,7 +976,8 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
 
 def _pair_refits(b: _Base, suspects: list[Suspect], consistent: bool, progress, done: int) -> list[Suspect]:
     """Two candidates together, best first, when no single one reaches the noise (and the base
-    does not either, or something helps): the best few suspects, and the best of each channel."""
+    does not either, or something helps): the best few suspects, and the best of each channel
+    (refitted side by side, :func:`_side_by_side`)."""
     eligible = [x for x in suspects if not x.not_eligible]
     helpful = [x for x in eligible if x.score > SIGNIFICANT]
     if any(x.explains for x in helpful) or (consistent and not helpful):
@@ -951,11 +994,14 @@ def _pair_refits(b: _Base, suspects: list[Suspect], consistent: bool, progress, 
                 top.append(best_ch)
     # two spectral factors together are one spectral factor (a filter follows any reshaping)
     combos = [cb for cb in combinations(top, 2) if not _spectral_only(cb)]
+    if progress and len(combos) > 1:
+        progress(done, done + len(combos), ", ".join(f"{a}+{c}" for a, c in combos))
+    ready = _side_by_side(b, combos)
     pairs: list[Suspect] = []
     for k, (a, c) in enumerate(combos):
         if progress:
             progress(done + k, done + len(combos), f"{a}+{c}")
-        p_ = _refit(b, (a, c))
+        p_ = ready[(a, c)] if (a, c) in ready else _refit(b, (a, c))
         if p_ is not None:
             pairs.append(p_)
     pairs.sort(key=lambda x: -x.score)

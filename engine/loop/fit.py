@@ -29,6 +29,7 @@ reported.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,6 +71,9 @@ DIFF_STEP = 1e-4
 #: search stands: a step along it would follow rounding (an opening larger than every light path
 #: moved the same refit 8 χ² apart, from a cold cache and a warm one), so its column is zero
 FLAT_RESIDUAL = 1e-7
+#: forward evaluations a problem remembers (:meth:`FitProblem.components`), at least: a trial
+#: point, the steps of a Jacobian around it (one per non-linear parameter), and one more
+COMPONENTS_MEMO = 4
 INTENSITY_BOUNDS = (1e-3, 1e3)
 DEFAULT_NOISE_PERCENT = 1.0
 DEFAULT_SPECTRAL_NOISE_PERCENT = 1.0
@@ -480,7 +484,23 @@ class FitProblem:
         self.nl = [i for i, fp in enumerate(self.free) if not fp.linear]
         self.lin_groups = [self.free[i].ident for i in self.lin]
         self.nfev = 0
-        self._last = None
+        self._memo: OrderedDict = OrderedDict()
+
+    def _recall(self, key):
+        """:meth:`components` at ``key`` if one of the last :data:`COMPONENTS_MEMO` evaluations
+        (None if not).  A search evaluates a trial point and, when it keeps it, its Jacobian's
+        steps around it and the point again: with one point remembered the point was computed
+        twice (a quarter of a two-parameter fit's evaluations)."""
+        hit = self._memo.get(key)
+        if hit is not None:
+            self._memo.move_to_end(key)
+        return hit
+
+    def _remember(self, key, out) -> None:
+        self._memo[key] = out
+        self._memo.move_to_end(key)
+        while len(self._memo) > max(COMPONENTS_MEMO, len(self.nl) + 2):
+            self._memo.popitem(last=False)
 
     # ------------------------------------------------------------------ model
     def model(self, values_nl) -> "ForwardModel":  # noqa: F821
@@ -499,8 +519,9 @@ class FitProblem:
     def components(self, values_nl):
         """Per-group illuminance (G, M) and tile radiance bands (G, B) at unit scales."""
         key = tuple(float(v) for v in values_nl)
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
+        hit = self._recall(key)
+        if hit is not None:
+            return hit
         fm, eff, lo = self.model(values_nl)
         pred = fm.predict(self.P, self.N, self.meter)
         self.nfev += 1
@@ -517,7 +538,7 @@ class FitProblem:
             T1 = np.stack(T1)
             T = self.tile_grid.integrate(T1)
         out = (A, T, T1, eff, lo)
-        self._last = (key, out)
+        self._remember(key, out)
         return out
 
     # ------------------------------------------------------------------ residuals
@@ -660,7 +681,7 @@ class FitProblem:
             xi = x.copy()
             xi[i] += h
             steps.append((i, h, self.residuals(xi)))
-        r0 = self.residuals(x)            # last: the search's first evaluation, at x, reads it again
+        r0 = self.residuals(x)            # a search's trial point, remembered (:meth:`_recall`)
         J = np.zeros((r0.size, x.size))
         for i, h, r in steps:
             d = r - r0

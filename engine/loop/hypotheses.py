@@ -1318,8 +1318,9 @@ class _ReshapedProblem(FitProblem):
 
     def components(self, values_nl):
         key = tuple(float(v) for v in values_nl)
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]
+        hit = self._recall(key)
+        if hit is not None:
+            return hit
         F = self.factors(values_nl)
         b, sb = self._base, self._sb
         A = None
@@ -1333,7 +1334,7 @@ class _ReshapedProblem(FitProblem):
             T1 = np.stack([sb.E[g][b.tile_row] * F[k] * refl / np.pi for k, g in enumerate(b.groups)])
             T = self.tile_grid.integrate(T1)
         out = (A, T, T1, self._eff, self._lo)
-        self._last = (key, out)
+        self._remember(key, out)
         self.nfev += 1
         return out
 

@@ -65,3 +65,27 @@ def test_a_user_error_in_a_worker_reaches_the_caller_with_its_diagnostics(monkey
     assert str(e.value) == "grid.csv:4:2: error LB407: 2 data values cannot fit 3 free parameters " \
                            "(expected at least 4 readings)"
     assert [d.code for d in e.value.diagnostics] == ["LB407"]
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: every BLAS runs one thread anyway")
+def test_every_blas_runs_one_thread_inside_the_limit():
+    """numpy and scipy each bring their own OpenBLAS: inside :func:`blas_single_thread` both run
+    one thread, however early the limit was first asked for (before scipy's linear algebra was
+    loaded, scipy's kept its threads: two forked refits, each factorising on two threads, took
+    three times as long as one after the other)."""
+    import subprocess
+    import sys
+
+    code = ("import numpy\n"
+            "from lbscene.engine.files.parallel import blas_single_thread\n"
+            "ctx = blas_single_thread()\n"                       # scipy.linalg not imported yet
+            "import scipy.linalg\n"
+            "from threadpoolctl import threadpool_info\n"
+            "with ctx:\n"
+            "    print(sorted({(i['filepath'], i['num_threads']) for i in threadpool_info()"
+            " if i['user_api'] == 'blas'}))\n")
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    libs = eval(out)
+    assert len(libs) >= 2, f"numpy's and scipy's BLAS expected: {libs}"
+    assert all(n == 1 for _, n in libs), libs
