@@ -666,7 +666,7 @@ class RadiosityTransport:
         # the plate as fitted shapes the band form factors beyond its transmittance (its layer's
         # transfer between the faces, its exit shape): a low-rank update (:meth:`_lu`) starts only
         # from a factorisation of the same plate (a fitted diffuse fraction moves the plate's
-        # reflectance alone, and an update from another plate's factors was 2 to 6 % off)
+        # reflectance alone, and an update from another plate's factors was 1.7 to 5.6 % off)
         self._plate_state = (json.dumps(self.plate_ir.diffuser.model_dump(mode="json"), sort_keys=True, default=str)
                              if has_plate else None)
         # the lamps' mirrors block the surfaces' mutual views and reflect their light (images)
@@ -1158,24 +1158,32 @@ class RadiosityTransport:
             return None
         return int(np.ceil(np.log(1e-9) / np.log(max(q, 1e-12))))
 
-    def _lu(self, key, j, u) -> "_LUSolver | _LowRankSolver":
+    def _form_factor_signature(self, T, Rm) -> tuple:
+        """What :meth:`_F_band` builds a band class's form factors from: the patches (with the
+        occluders that cut them), the bodies, the plate as fitted (its layer's transfer between its
+        faces and its exit shape) and its transmittance ``T``, the mirrors' reflectances ``Rm``.  A
+        factorisation is kept under it and an update starts only from one with the same."""
+        return (self._patch_key, self._body_digest.tobytes(), self._plate_state,
+                None if T is None else float(T), np.asarray(Rm, float).tobytes())
+
+    def _lu(self, u) -> "_LUSolver | _LowRankSolver":
         """A solver of :math:`(I - \\mathrm{diag}(ρ) F_u)` for band class ``u`` (its reflectances
         and plate transmittance): the LU factors of the matrix, or — when an earlier class with
-        the same form factors differs from it in the reflectance of fewer than half the patches
-        (a fit moving the ceiling's or the walls' reflectance) — that class's factors with the
+        the same form factors (:meth:`_form_factor_signature`) differs from it in the reflectance
+        of at most :data:`LOW_RANK_MAX_FRACTION` of the patches (a fit moving the ceiling's or the
+        walls' reflectance) — that class's factors with the
         difference as a low-rank update (:class:`_LowRankSolver`), exact to rounding."""
         from scipy.linalg import lu_factor
 
         store = self.ctx.cache.setdefault("_rad_lu", {})
-        k = key + (j,)
+        r, T, Rm = self._class_parts(u)
+        bk = self._form_factor_signature(T, Rm)
+        k = (bk, r.tobytes())
         if k not in store:
             P = len(self.patches)
-            r, T, Rm = self._class_parts(u)
             # the last few factored classes an update may start from, those with these form
             # factors among them (each holds an n × n factorisation: bounded apart from the store)
             bases = self.ctx.cache.setdefault("_rad_lu_bases", {})
-            bk = (self._patch_key, self._body_digest.tobytes(), None if T is None else float(T), Rm.tobytes(),
-                  self._plate_state)
             base = None
             for (bk_, k_), b in bases.items():
                 if bk_ != bk:
@@ -1188,8 +1196,7 @@ class RadiosityTransport:
             if base is not None:
                 # the base's rows of these form factors are kept with it: the band's form factors
                 # (past the plate, its images) are built only for a new patch set
-                known = _LowRankSolver.rows_known(base[0], r)
-                store[k] = _LowRankSolver(base[0], r, None if known else self._F_band(T, Rm))
+                store[k] = _LowRankSolver(base[0], r, lambda: self._F_band(T, Rm))
                 bases[base[2]] = bases.pop(base[2])          # the least recently used go first
             else:
                 Fu = self._F_band(T, Rm)
@@ -1237,7 +1244,7 @@ class RadiosityTransport:
 
     def _solve_now(self) -> np.ndarray:
         terms, E0 = self._first_order()
-        uniq, inv, key = self._band_classes()
+        uniq, inv, _ = self._band_classes()
         P = len(self.patches)
         sol = []
         for j, u in enumerate(uniq):
@@ -1252,7 +1259,7 @@ class RadiosityTransport:
                     acc += x
                 sol.append(acc)
             else:
-                sol.append(self._lu(key, j, u).solve(r[:, None] * E0))
+                sol.append(self._lu(u).solve(r[:, None] * E0))
         return np.stack([sol[i] for i in inv])
 
     def _in_front(self, P) -> np.ndarray:
@@ -1557,7 +1564,7 @@ class RadiosityTransport:
                     acc += y * r[None, :]
                 ops.append(acc)
             else:
-                x = self._lu(key, j, u).solve(Gj.T, trans=1)          # (I − ρF)⁻ᵀ Gᵀ
+                x = self._lu(u).solve(Gj.T, trans=1)          # (I − ρF)⁻ᵀ Gᵀ
                 ops.append((r[:, None] * x).T)
         out = np.stack([ops[i] for i in inv])
         if len(store) >= 32:
@@ -1670,13 +1677,15 @@ class _LowRankSolver:
 
         A'^{-T} b = y + Q (I_k - D Q_S)^{-1} D y_S, \\quad y = A^{-T} b,\\ Q = A^{-T} F_S^T,
 
-    with :math:`Q_S` the rows :math:`S` of :math:`Q`.  :math:`P` and :math:`Q` depend on
-    :math:`S` only (kept with the base): a fit that moves one surface's reflectance pays
+    with :math:`Q_S` the rows :math:`S` of :math:`Q`.  :math:`F_S`, :math:`P`, :math:`Q` and
+    :math:`F_S P` depend on :math:`S` only (kept with the base; ``form_factors``, a callable
+    returning :math:`F`, is called only for a patch set the base has not kept): a fit that moves
+    one surface's reflectance pays
     :math:`k` solves once, then a :math:`k \\times k` system per step, instead of a new LU of
     the :math:`n \\times n` matrix each time (the SpectraLight's ceiling: 25 factorisations per
     refit)."""
 
-    def __init__(self, base: _LUSolver, r, F=None):
+    def __init__(self, base: _LUSolver, r, form_factors):
         self.base = base
         self.r = np.asarray(r, float)
         S = np.nonzero(self.r != base.r)[0]
@@ -1684,19 +1693,11 @@ class _LowRankSolver:
         self.d = (self.r - base.r)[S]
         self._skey = S.tobytes()
         upd = base._updates.setdefault(self._skey, {})
-        if "F_S" not in upd:
-            if F is None:
-                raise ValueError("the form factors are needed for a new patch set")
-            upd["F_S"] = np.ascontiguousarray(np.asarray(F)[S])
+        if "F_S" not in upd:              # a new patch set: its rows of the form factors
+            upd["F_S"] = np.ascontiguousarray(np.asarray(form_factors())[S])
         self._upd = upd
         self.F_S = upd["F_S"]
         self._small = {}
-
-    @staticmethod
-    def rows_known(base: _LUSolver, r) -> bool:
-        """Whether ``base`` keeps the form factors' rows for the patches where ``r`` differs."""
-        S = np.nonzero(np.asarray(r, float) != base.r)[0]
-        return "F_S" in base._updates.get(S.tobytes(), {})
 
     def _PQ(self, trans: int):
         name = "Q" if trans else "P"
