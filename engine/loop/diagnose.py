@@ -33,13 +33,16 @@ Verdict:
 ``ambiguous:<id>,<id>…``
     several suspects explain the data within :data:`TIE_MARGIN` of the best:
     the layout cannot tell them apart — plan more points
-    (:mod:`lbscene.engine.loop.plan`) or declare the lamp output known.
+    (:mod:`lbscene.engine.loop.plan`) or declare the lamp output known.  Also where the
+    verdict the data give recurs in fewer than :data:`STABLE_SHARE` of the noise resamples
+    but a tie of it and its rivals does (:func:`_widened`): the tie is what the data support.
 ``unexplained``
     no suspect helps significantly: the report says where it fails.
 ``unstable:<verdict> (<share>), <rival> (<share>)…``
     the verdict the data give recurs in fewer than :data:`STABLE_SHARE` of the noise
-    resamples (:class:`Confidence`): it is given with the verdicts the resamples give instead
-    and their shares, and no edit is suggested.
+    resamples (:class:`Confidence`), and no tie of it with its rivals does (the resamples say
+    ``none`` or ``unexplained`` too often): it is given with the verdicts the resamples give
+    instead and their shares, and no edit is suggested.
 
 Explanations that change spectra only (a filter in front of the lamps, the lamps' spectrum
 reshaped) are one thing to a spectroradiometer: when the best is one of them, the others that
@@ -285,11 +288,20 @@ class Confidence:
     samples: int = 0
     #: verdict (short form) → fraction of the resamples that give it, largest first
     shares: dict = field(default_factory=dict)
+    #: short form → the verdict the resamples counted under it gave (:func:`_widened`)
+    verdicts: dict = field(default_factory=dict, repr=False, compare=False)
+    #: ``(verdict, recurrence)`` the data gave where that recurred in fewer than
+    #: :data:`STABLE_SHARE` of the resamples and the tie reported instead does not
+    #: (:func:`_widened`); None otherwise
+    widened_from: tuple[str, float] | None = None
 
     def to_json(self) -> dict:
-        return {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
-                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples,
-                "verdict_shares": {k: _r(v, 3) for k, v in self.shares.items()}}
+        out = {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
+               "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples,
+               "verdict_shares": {k: _r(v, 3) for k, v in self.shares.items()}}
+        if self.widened_from is not None:
+            out["widened_from"] = {"verdict": self.widened_from[0], "recurrence": _r(self.widened_from[1], 3)}
+        return out
 
 
 @dataclass
@@ -774,7 +786,7 @@ def _refit(b: _Base, items: tuple[str, ...], rival: float | None = None) -> Susp
     fit = prob.solve()
     k = len(free)
     for H in hw if len(items) == 1 else ():
-        if H.channel == "spatial" and H.geometry(cur_ir, b.lighting):
+        if _profiled_geometry(H, cur_ir, b.lighting):
             why = _cannot_rival(b, fit, k, rival)
             if why:
                 fit.hypothesis_data = {**(getattr(fit, "hypothesis_data", None) or {}), "not_profiled": why}
@@ -902,22 +914,33 @@ def _not_profiled_note(fit: FitResult) -> str:
     return f"# hypothesis: {why}\n" if why else ""
 
 
-def _side_by_side(b: _Base, items: list[tuple[str, ...]], rival: float | None = None) -> dict:
+def _side_by_side(b: _Base, items: list[tuple[str, ...]], rival: float | None = None,
+                  progress=None, step: tuple[int, int] = (0, 0)) -> dict:
     """``{items: _refit(b, items, rival)}``, the refits run side by side in processes forked from
     this one (:func:`~lbscene.engine.files.parallel.map_forked`); ``{}`` when there are fewer than
     two or one process only (then each is refitted where the loop reaches it, as before).  Only
     refits whose result cannot depend on the ones before them are given here: each is what the
-    loop would compute at its turn, from the same base fit, started from the same values."""
+    loop would compute at its turn, from the same base fit, started from the same values.
+    ``progress(done, total, what)`` at ``step`` names the batch, only when it does run side by
+    side."""
     if len(items) < 2 or process_count() < 2:
         return {}
+    if progress:
+        progress(*step, ", ".join("+".join(it) for it in items))
     return dict(zip(items, map_forked(lambda it: _refit(b, it, rival), items)))
 
 
+def _profiled_geometry(H, ir, lighting) -> bool:
+    """Whether refitting hypothesis ``H`` alone on booth ``ir`` profiles its geometry
+    (:func:`profile_geometry`: properties the forward model cannot vary, refitted on booths with
+    other values, the refits forked side by side; skipped against a rival, :func:`_cannot_rival`)."""
+    return H.channel == "spatial" and bool(H.geometry(ir, lighting))
+
+
 def _profiles_geometry(b: _Base, item: str) -> bool:
-    """Whether refitting ``item`` alone profiles a hypothesis' geometry (:func:`profile_geometry`:
-    its own refits forked side by side, and skipped against a rival, :func:`_cannot_rival`)."""
+    """:func:`_profiled_geometry` of candidate ``item`` (False for a catalog effect)."""
     H = _hypothesis(item)
-    return H is not None and H.channel == "spatial" and bool(H.geometry(_configure(b, (item,))[0], b.lighting))
+    return H is not None and _profiled_geometry(H, _configure(b, (item,))[0], b.lighting)
 
 
 def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
@@ -948,9 +971,7 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
     order = [i for i in todo if not spatial_hardware(i)] + [i for i in todo if spatial_hardware(i)]
     # with the booth consistent, hardware is refitted only after a helpful explanation: in order
     first = [(i,) for i in order if not spatial_hardware(i) and not (consistent and hardware(i))]
-    if progress and len(first) > 1:
-        progress(0, len(order), ", ".join(i for i, in first))
-    ready = _side_by_side(b, first)
+    ready = _side_by_side(b, first, None, progress, (0, len(order)))
     spatial_started = False
     for k, item in enumerate(order):
         if hardware(item) and consistent and not any(x.score > SIGNIFICANT and not x.not_eligible for x in suspects):
@@ -964,9 +985,7 @@ def _single_refits(b: _Base, todo: list[str], consistent: bool, progress,
         if spatial_hardware(item) and not spatial_started:
             spatial_started = True
             later = [(i,) for i in order[k:] if not _profiles_geometry(b, i) and not _beyond_reach(b, i, rival)]
-            if progress and len(later) > 1:
-                progress(k, len(order), ", ".join(i for i, in later))
-            ready.update(_side_by_side(b, later, rival))
+            ready.update(_side_by_side(b, later, rival, progress, (k, len(order))))
         s_ = ready.pop((item,)) if (item,) in ready else _refit(b, (item,), rival)
         if s_ is not None:
             suspects.append(s_)
@@ -994,9 +1013,7 @@ def _pair_refits(b: _Base, suspects: list[Suspect], consistent: bool, progress, 
                 top.append(best_ch)
     # two spectral factors together are one spectral factor (a filter follows any reshaping)
     combos = [cb for cb in combinations(top, 2) if not _spectral_only(cb)]
-    if progress and len(combos) > 1:
-        progress(done, done + len(combos), ", ".join(f"{a}+{c}" for a, c in combos))
-    ready = _side_by_side(b, combos)
+    ready = _side_by_side(b, combos, None, progress, (done, done + len(combos)))
     pairs: list[Suspect] = []
     for k, (a, c) in enumerate(combos):
         if progress:
@@ -1029,6 +1046,9 @@ def diagnose(meas, base_problem: FitProblem, *, candidates: list[str] | None = N
     d.verdict = _decide(consistent, [_scored(x) for x in suspects if not x.not_eligible],
                         [_scored(x) for x in pairs if not x.not_eligible])
     d.confidence = _confidence(d, b.bic, b.noise, b.ctest)
+    wide = _widened(d.verdict, d.confidence, suspects + pairs)
+    if wide is not None:
+        d.verdict, d.confidence = wide
     _explain(d, meas, base_problem.effects, b.noise)
     d.verdict = _unstable(d.verdict, d.confidence)
     if d.verdict.kind == "unstable":
@@ -1170,6 +1190,7 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict 
     sc_rows = np.stack([sc for _, sc, _ in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES
     ok_rows = np.stack([ok for _, _, ok in cols], axis=1).tolist() if cols else [[]] * BOOTSTRAP_SAMPLES
     counts: dict[str, int] = {}
+    kinds: dict[str, Verdict] = {}
     same = 0
     for b in range(BOOTSTRAP_SAMPLES):
         singles, pairs = [], []
@@ -1178,10 +1199,51 @@ def _confidence(d: "Diagnosis", base_bic: float, noise: NoiseModel, ctest: dict 
         verdict = _decide(bool(base_ok[b]), singles, pairs)
         key = _share_key(verdict, v)
         counts[key] = counts.get(key, 0) + 1
+        kinds.setdefault(key, verdict)
         same += _supports(verdict, v)
     shares = {k: c / BOOTSTRAP_SAMPLES for k, c in sorted(counts.items(), key=lambda kv: -kv[1])}
     return Confidence(w_score if winner else None, vs_next, same / BOOTSTRAP_SAMPLES, BOOTSTRAP_SAMPLES,
-                      shares)
+                      shares, verdicts={k: kinds[k] for k in shares})
+
+
+def _named(r: Verdict) -> list[tuple[str, ...]]:
+    """The explanations a verdict names: its effects (``missing``), its alternatives (a tie)."""
+    return [r.effects] if r.kind == "missing" else list(r.alternatives) if r.kind == "ambiguous" else []
+
+
+def _widened(v: Verdict, c: Confidence | None, scored) -> "tuple[Verdict, Confidence] | None":
+    """The tie the noise resamples support where the data's verdict ``v`` recurs in fewer than
+    :data:`STABLE_SHARE` of them; None where ``v`` is stable or no such tie exists.
+
+    A tie says the cause is one of its explanations: a resample supports it when its own
+    verdict names only explanations among them (:func:`_supports`).  Starting from ``v``'s own
+    explanations, those of a resample verdict are added until the tie recurs in
+    :data:`STABLE_SHARE` of the resamples: the fewest that reach it (the most support among
+    them), else those that add most support; verdicts that name nothing (``none``, ``unexplained``) cannot join it.  The tie
+    lists its explanations best first by the data's scores (``scored``: the suspects and pairs).
+    Where no tie reaches the share (the resamples say ``none`` or ``unexplained`` too often), the
+    verdict stays ``v``, reported ``unstable`` (:func:`_unstable`)."""
+    if c is None or c.recurrence is None or c.recurrence >= STABLE_SHARE or v.kind not in ("missing", "ambiguous"):
+        return None
+    named = {k: set(_named(r)) for k, r in c.verdicts.items() if _named(r)}
+    tie = set(_named(v))
+
+    def support(t):
+        return sum(c.shares[k] for k, n in named.items() if n <= t)
+
+    while support(tie) < STABLE_SHARE:
+        adds = [n - tie for n in named.values() if not n <= tie]
+        if not adds:
+            return None
+        enough = [a for a in adds if support(tie | a) >= STABLE_SHARE]
+        tie |= (min(enough, key=lambda a: (len(a), -support(tie | a))) if enough
+                else max(adds, key=lambda a: (support(tie | a), -len(a))))
+    score = {x.effects: x.score for x in scored if not x.not_eligible}
+    alts = tuple(sorted(tie, key=lambda a: -score.get(a, -math.inf)))
+    if len(alts) < 2:
+        return None
+    out = Verdict("ambiguous", alternatives=alts)
+    return out, replace(c, recurrence=support(tie), widened_from=(str(v), c.recurrence))
 
 
 def _supports(r: Verdict, v: Verdict) -> bool:
@@ -1289,9 +1351,15 @@ def _explain(d: "Diagnosis", meas, booth_effects: dict, noise: NoiseModel) -> No
                 "spectroradiometer (each multiplies every light path by one function of wavelength): "
                 "the white tile cannot tell " + " from ".join(s.effect for s in spec) +
                 ", the simpler first, whatever BIC margin their parametrisations make")
+        if d.confidence is not None and d.confidence.widened_from is not None:
+            was, share = d.confidence.widened_from
+            d.explanation.append(
+                f"these data give {was}, but that verdict comes back in only {100 * share:.0f} % of "
+                f"{d.confidence.samples} noise resamples; the tie below in "
+                f"{100 * d.confidence.recurrence:.0f} %: the noise cannot tell its explanations apart")
         d.explanation.append(
             "these explanations fit the data equally well (BIC within "
-            f"{TIE_MARGIN:g}, or the same spectral factor): " +
+            f"{TIE_MARGIN:g}, the same spectral factor, or a lead the noise resamples overturn): " +
             ", ".join(f"{s.effect} (RMSE {s.rmse_percent_after:.2f} %, score {s.score:.1f}, "
                       f"{s.n_params} parameters)" for s in alts))
         d.explanation.append("run `lbscene plan` for the points that tell them apart, or declare the "

@@ -147,11 +147,17 @@ def test_hidden_effect_is_named_and_the_booth_edit_fixes_it(booth, tmp_path, tru
     m = measure(booth, tmp_path / "m", truth, known=known)
     res = run_compare(m)
     v = res.verdict
-    if v.kind == "unstable":
+    c = res.diagnosis.confidence
+    if v.kind == "unstable" or c.widened_from is not None:
         # the lead over a rival is within the noise (an aperture's level drop against an end
-        # fall-off, output known): the data name the truth, and most resamples name it too
-        assert v.point == f"missing:{truth}", str(v)
-        assert sum(share for r, share in v.rivals if truth in r) > 0.5, str(v)
+        # fall-off, output known): the data name the truth, and most resamples name it too; the
+        # tie of the two is reported where the resamples support it, the truth first
+        point = str(v.point) if v.kind == "unstable" else c.widened_from[0]
+        assert point == f"missing:{truth}", str(v)
+        if v.kind == "ambiguous":
+            assert v.alternatives[0] == (truth,) and c.recurrence >= 0.5, (str(v), c)
+        else:
+            assert sum(share for r, share in v.rivals if truth in r) > 0.5, str(v)
         return
     assert v == f"missing:{truth}", [(s.effect, round(s.score, 1)) for s in res.diagnosis.suspects]
     assert res.fit.rmse_percent > AFTER_FACTOR * NOISE_PERCENT or res.diagnosis.suspects[0].score > 10

@@ -360,6 +360,78 @@ def test_an_unstable_verdict_names_its_rivals_and_their_shares():
     assert _unstable(v, Confidence(40.0, 12.0, 0.5, 2000, {})) is v
 
 
+def _resampled(shares: dict):
+    """A Confidence whose resamples gave ``shares`` (short forms parsed into verdicts)."""
+    from lbscene.engine.loop.diagnose import Confidence, Verdict
+
+    def parse(k):
+        kind, _, rest = k.partition(":")
+        if kind == "missing":
+            return Verdict("missing", tuple(rest.split("+")))
+        if kind == "ambiguous":
+            return Verdict("ambiguous", alternatives=tuple(tuple(a.split("+")) for a in rest.split(",")))
+        return Verdict(kind)
+    return Confidence(10.7, 10.7, None, 2000, dict(shares), verdicts={k: parse(k) for k in shares})
+
+
+class _Scored:
+    def __init__(self, effects, score):
+        self.effects, self.score, self.not_eligible = effects, score, ""
+
+
+def test_a_verdict_the_resamples_overturn_becomes_the_tie_they_support():
+    """The data name a plate by 10.7 BIC units; the resamples give the plate alone in 49 %, and
+    ties of it with an angular profile and an aperture in most of the rest: the verdict is the
+    smallest tie that recurs in half of them, the plate or the profile (60.5 %; with the
+    aperture too, 98.5 %), best first by the data's scores, and it says what the data gave."""
+    from lbscene.engine.loop.diagnose import STABLE_SHARE, Verdict, _widened
+
+    shares = {"missing:diffuser": 0.49, "ambiguous:angular_profile,aperture_occlusion,diffuser": 0.30,
+              "ambiguous:angular_profile,diffuser": 0.11, "ambiguous:angular_profile,aperture_occlusion": 0.06,
+              "ambiguous:aperture_occlusion,diffuser": 0.02, "missing:angular_profile": 0.005,
+              "ambiguous:surface_reflectance,tube_end_falloff": 0.015}
+    c = _resampled(shares)
+    c.recurrence = 0.49
+    v = Verdict("missing", ("diffuser",))
+    scored = [_Scored(("diffuser",), 37590.9), _Scored(("angular_profile",), 37580.2),
+              _Scored(("aperture_occlusion",), 37578.0), _Scored(("tube_end_falloff",), 37562.5),
+              _Scored(("surface_reflectance",), 37560.0)]
+    tie, c2 = _widened(v, c, scored)
+    assert str(tie) == "ambiguous:diffuser,angular_profile"
+    assert c2.recurrence == pytest.approx(0.605) and c2.recurrence >= STABLE_SHARE
+    assert c2.widened_from == ("missing:diffuser", 0.49)
+    assert c2.to_json()["widened_from"] == {"verdict": "missing:diffuser", "recurrence": 0.49}
+    # of the rivals that each bring it to half, the one with most support (the profile 55 %, the
+    # aperture 50 %)
+    c.shares = {"missing:diffuser": 0.30, "missing:angular_profile": 0.25, "missing:aperture_occlusion": 0.2,
+                "ambiguous:x,y": 0.25}
+    c.verdicts = _resampled(c.shares).verdicts
+    c.recurrence = 0.30
+    tie, c2 = _widened(v, c, scored)
+    assert str(tie) == "ambiguous:diffuser,angular_profile" and c2.recurrence == pytest.approx(0.55)
+    # two together where neither alone is enough
+    c.shares = {"missing:diffuser": 0.30, "missing:angular_profile": 0.15, "missing:aperture_occlusion": 0.15,
+                "unexplained": 0.4}
+    c.verdicts = _resampled(c.shares).verdicts
+    tie, c2 = _widened(v, c, scored)
+    assert str(tie) == "ambiguous:diffuser,angular_profile,aperture_occlusion" and c2.recurrence == pytest.approx(0.6)
+
+
+def test_no_tie_is_made_where_the_resamples_say_none_or_unexplained():
+    from lbscene.engine.loop.diagnose import Verdict, _unstable, _widened
+
+    v = Verdict("missing", ("spectral_filter",))
+    c = _resampled({"unexplained": 0.6, "missing:spectral_filter": 0.3, "ambiguous:a,b": 0.095, "none": 0.005})
+    c.recurrence = 0.3
+    assert _widened(v, c, [_Scored(("spectral_filter",), 40.0)]) is None
+    assert _unstable(v, c).kind == "unstable"
+    # a stable verdict, and an unexplained one, are left as they are
+    c.recurrence = 0.5
+    assert _widened(v, c, []) is None
+    c.recurrence = 0.3
+    assert _widened(Verdict("unexplained"), c, []) is None
+
+
 def test_text_json_and_html_say_the_same_unstable_verdict(tmp_path, monkeypatch):
     import json
 
