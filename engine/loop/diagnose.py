@@ -290,9 +290,9 @@ class Confidence:
     shares: dict = field(default_factory=dict)
     #: short form → the verdict the resamples counted under it gave (:func:`_widened`)
     verdicts: dict = field(default_factory=dict, repr=False, compare=False)
-    #: ``(verdict, recurrence)`` the data gave where that recurred in fewer than
-    #: :data:`STABLE_SHARE` of the resamples and the tie reported instead does not
-    #: (:func:`_widened`); None otherwise
+    #: ``(verdict, recurrence)`` the data gave, where it recurred in fewer than
+    #: :data:`STABLE_SHARE` of the resamples and a tie of it and its rivals that does is the
+    #: verdict instead (:func:`_widened`); None otherwise
     widened_from: tuple[str, float] | None = None
 
     def to_json(self) -> dict:
