@@ -75,7 +75,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from lbscene.engine.files.disk_cache import cached_array
+from lbscene.engine.files.disk_cache import array_key, cached_array
 from lbscene.engine.light.effects.registry import changes_lamp_light
 
 from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_convex_faces, hidden_from_apex, lamp_body,
@@ -1124,8 +1124,6 @@ class RadiosityTransport:
     def _band_classes(self):
         """Bands whose reflectances (and plate transmittance) coincide share one solve:
         ``(unique rows (U, P[+1]), band → row index (B,), cache key)``."""
-        from lbscene.engine.files.disk_cache import array_key
-
         Rm = [np.broadcast_to(R, (self.rho.shape[1],)) for R, _ in self._mirror_groups]
         ck = self._rho_key + ("classes", None if self.plate_T is None else array_key(self.plate_T),
                               tuple(array_key(R) for R in Rm))
@@ -1299,6 +1297,34 @@ class RadiosityTransport:
         self._F_crossed_last = (float(T), F)
         return F
 
+    def _F_crossed_rows(self, rows, T):
+        """Rows ``rows`` of :meth:`_F_crossed` at ``T``, without forming the others."""
+        if self.cross_pp is None:
+            return self.F[rows]
+        hit = getattr(self, "_F_crossed_last", None)
+        if hit is not None and hit[0] == float(T):
+            return hit[1][rows]
+        return self._crossed(self.F[rows], self.cross_pp[rows], T)
+
+    def _exit_cosines(self, points) -> list[np.ndarray]:
+        """Per side of the plate (bottom faces seen from below, top from above), ``(len(points),
+        n)`` cosines of the directions from the face patches to ``points`` (0 behind a face):
+        geometry, kept for the last few point sets (a fit moves the plate's light, not them)."""
+        pairs = self.plate_pairs
+        store = self.__dict__.setdefault("_exit_cos", {})
+        key = array_key(points)
+        if key in store:
+            return store[key]
+        c = self.patches.centres
+        out = []
+        for face, sign in ((pairs[:, 1], -1.0), (pairs[:, 0], 1.0)):
+            d = np.asarray(points, float)[:, None, :] - c[face][None, :, :]
+            out.append(np.clip(sign * d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-12), 0.0, 1.0))
+        if len(store) >= 8:
+            store.pop(next(iter(store)))
+        store[key] = out
+        return out
+
     def _F_band(self, T, Rm=()):
         """The form factors of one band class: past the plate at its transmittance ``T`` (its
         images at :math:`R(θ)` for a specular plate) and with the mirrors' images at their
@@ -1382,14 +1408,11 @@ class RadiosityTransport:
             return 0.0
         # the plate's layer as the diffuser effect's parameters make it (plates.fitted_plate)
         layer = opal_plate_layer(ir)
-        c = self.patches.centres
-        F = self._F_crossed(T)
         out = 0.0
-        for face, other, sign in ((pairs[:, 1], pairs[:, 0], -1.0), (pairs[:, 0], pairs[:, 1], 1.0)):
-            d = np.asarray(points, float)[:, None, :] - c[face][None, :, :]
-            cos = np.clip(sign * d[..., 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-12), 0.0, 1.0)
+        sides = zip((pairs[:, 1], pairs[:, 0]), (pairs[:, 0], pairs[:, 1]), self._exit_cosines(points))
+        for face, other, cos in sides:
             delta = M[:, face] * (layer.exit_shape(cos) - 1.0)
-            out = out + delta @ (tau * F[other])
+            out = out + delta @ (tau * self._F_crossed_rows(other, T))
         return out
 
     def _class_parts(self, u) -> tuple[np.ndarray, float | None, np.ndarray]:
