@@ -293,14 +293,14 @@ class Confidence:
     #: ``(verdict, recurrence)`` the data gave, where it recurred in fewer than
     #: :data:`STABLE_SHARE` of the resamples and a tie of it and its rivals that does is the
     #: verdict instead (:func:`_widened`); None otherwise
-    widened_from: tuple[str, float] | None = None
+    widened_from: "tuple[Verdict, float] | None" = None
 
     def to_json(self) -> dict:
         out = {"delta_bic_vs_base": _r(self.delta_bic_vs_base, 2), "delta_bic_vs_next": _r(self.delta_bic_vs_next, 2),
                "recurrence": _r(self.recurrence, 3), "bootstrap_samples": self.samples,
                "verdict_shares": {k: _r(v, 3) for k, v in self.shares.items()}}
         if self.widened_from is not None:
-            out["widened_from"] = {"verdict": self.widened_from[0], "recurrence": _r(self.widened_from[1], 3)}
+            out["widened_from"] = {"verdict": str(self.widened_from[0]), "recurrence": _r(self.widened_from[1], 3)}
         return out
 
 
@@ -1219,8 +1219,9 @@ def _widened(v: Verdict, c: Confidence | None, scored) -> "tuple[Verdict, Confid
     verdict names only explanations among them (:func:`_supports`).  Starting from ``v``'s own
     explanations, those of a resample verdict are added until the tie recurs in
     :data:`STABLE_SHARE` of the resamples: the fewest that reach it (the most support among
-    them), else those that add most support; verdicts that name nothing (``none``, ``unexplained``) cannot join it.  The tie
-    lists its explanations best first by the data's scores (``scored``: the suspects and pairs).
+    them), else those that add most support; verdicts that name nothing (``none``,
+    ``unexplained``) cannot join it.  The tie lists its explanations best first by the data's
+    scores (``scored``: the suspects and pairs).
     Where no tie reaches the share (the resamples say ``none`` or ``unexplained`` too often), the
     verdict stays ``v``, reported ``unstable`` (:func:`_unstable`)."""
     if c is None or c.recurrence is None or c.recurrence >= STABLE_SHARE or v.kind not in ("missing", "ambiguous"):
@@ -1243,7 +1244,7 @@ def _widened(v: Verdict, c: Confidence | None, scored) -> "tuple[Verdict, Confid
     if len(alts) < 2:
         return None
     out = Verdict("ambiguous", alternatives=alts)
-    return out, replace(c, recurrence=support(tie), widened_from=(str(v), c.recurrence))
+    return out, replace(c, recurrence=support(tie), widened_from=(v, c.recurrence))
 
 
 def _supports(r: Verdict, v: Verdict) -> bool:
@@ -1252,8 +1253,7 @@ def _supports(r: Verdict, v: Verdict) -> bool:
     ``unexplained``, any unexplained verdict (its best partial explanation is an aside, and the
     shares count it as one verdict)."""
     if v.kind == "ambiguous" and r.kind in ("missing", "ambiguous"):
-        named = [r.effects] if r.kind == "missing" else list(r.alternatives)
-        return set(named) <= set(v.alternatives)
+        return set(_named(r)) <= set(v.alternatives)
     if v.kind == "unexplained":
         return r.kind == "unexplained"
     return r == v

@@ -51,13 +51,8 @@ class Case:
         if was is not None and verdict.kind == "ambiguous":
             # the data's own verdict recurred in under half of the resamples and the tie of it and
             # its rivals is reported instead: the data's must be allowed, and the tie name the truth
-            from lbscene.engine.loop.diagnose import Verdict
-
-            kind, _, rest = was[0].partition(":")
-            point = Verdict("missing", tuple(rest.split("+"))) if kind == "missing" else Verdict(
-                "ambiguous", alternatives=tuple(tuple(a.split("+")) for a in rest.split(",")))
             named = {a.split(":", 1)[1].split(",")[0] for a in self.allowed if ":" in a}
-            return self.allows(point) and any(e in verdict.tied for e in named)
+            return self.allows(was[0]) and any(e in verdict.tied for e in named)
         if verdict.kind == "unstable":
             # the lead over its rivals is within the noise: the verdict the data give must be
             # allowed, and most resamples must name an allowed effect too
@@ -212,7 +207,8 @@ def run_case(case: Case, tmp: Path) -> dict:
     t0 = time.perf_counter()
     res = run_compare(m)
     secs = time.perf_counter() - t0
-    row = {"case": case.id, "verdict": str(res.verdict), "allowed": case.allows(res.verdict, res.diagnosis.confidence),
+    row = {"case": case.id, "verdict": str(res.verdict),
+           "allowed": case.allows(res.verdict, res.diagnosis.confidence),
            "rmse_before": res.fit.rmse_percent, "rmse_after": None, "verdict_after": None,
            "seconds": res.timing_s.get("diagnose", secs), "total_seconds": secs, "recurrence": res.diagnosis.confidence.recurrence if res.diagnosis.confidence else None,
            "snippet": res.diagnosis.snippet}

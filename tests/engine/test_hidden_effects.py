@@ -152,7 +152,7 @@ def test_hidden_effect_is_named_and_the_booth_edit_fixes_it(booth, tmp_path, tru
         # the lead over a rival is within the noise (an aperture's level drop against an end
         # fall-off, output known): the data name the truth, and most resamples name it too; the
         # tie of the two is reported where the resamples support it, the truth first
-        point = str(v.point) if v.kind == "unstable" else c.widened_from[0]
+        point = str(v.point if v.kind == "unstable" else c.widened_from[0])
         assert point == f"missing:{truth}", str(v)
         if v.kind == "ambiguous":
             assert v.alternatives[0] == (truth,) and c.recurrence >= 0.5, (str(v), c)

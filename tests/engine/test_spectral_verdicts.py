@@ -399,7 +399,7 @@ def test_a_verdict_the_resamples_overturn_becomes_the_tie_they_support():
     tie, c2 = _widened(v, c, scored)
     assert str(tie) == "ambiguous:diffuser,angular_profile"
     assert c2.recurrence == pytest.approx(0.605) and c2.recurrence >= STABLE_SHARE
-    assert c2.widened_from == ("missing:diffuser", 0.49)
+    assert c2.widened_from == (v, 0.49)
     assert c2.to_json()["widened_from"] == {"verdict": "missing:diffuser", "recurrence": 0.49}
     # of the rivals that each bring it to half, the one with most support (the profile 55 %, the
     # aperture 50 %)
