@@ -81,7 +81,15 @@ CASES = [
     Case("cavity-floor-known", "cavity-wide", "floor", _CAVITY, True, "aperture_occlusion",
          ("missing:aperture_occlusion",), slow=True),
     Case("cavity-floor-fitted", "cavity-wide", "floor", _CAVITY, False, "aperture_occlusion",
-         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
+         ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True,
+         gap="the verdict is ambiguous:surface_reflectance,angular_profile: with the output fitted the "
+             "cavity leaves 1.31 % RMS at 1 % noise, and every explanation brings it to the noise (the "
+             "cavity 0.936 %, the walls' reflectance 0.945 %, the ceiling's 0.947 %, an angular profile "
+             "1.02 %).  The cavity fits best but prices four parameters (its opening along the tubes, "
+             "across them, its height and its inside, each pinned) against one: Delta BIC 36.7 against "
+             "48.0, 1.3 past the tie margin.  The resamples give missing:surface_reflectance in 54 %.  "
+             "The truth's ceiling is black, so the ceiling's reflectance found dark is true of it; the "
+             "plate's edge shows too faintly to price the rest"),
     Case("cavity-a3-known", "cavity-wide", "a3", _CAVITY, True, "aperture_occlusion",
          ("missing:aperture_occlusion", "ambiguous:aperture_occlusion"), slow=True),
     # the opening's edge lies far beyond the A3 sheet: with the output fitted the sheet sees a
