@@ -70,13 +70,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import replace
 
 import numpy as np
 
 from lbscene.engine.files.disk_cache import array_key, cached_array
-from lbscene.engine.light.effects.registry import changes_lamp_light
 
 from .geometry import (Patches, _breaks, _grid_quad, bodies_block, coplanar_convex_faces, hidden_from_apex, lamp_body,
                        lamp_surface_distance_mm, mesh_patches, mesh_triangles, pairs_near_bodies, plate_pieces,
@@ -112,11 +110,6 @@ MID_DIAGONALS = 8.0
 MID_SUB = 2
 #: box patches are split while their diagonal exceeds this times their distance to a lit lamp …
 REFINE_RATIO = 1.5
-#: relative step to which the fitted numbers that shape lamp light are rounded for the light
-#: reaching the patches (RadiosityTransport._transport_model)
-TRANSPORT_PARAM_STEP = 0.02
-#: ... and the absolute step near zero
-TRANSPORT_PARAM_FLOOR = 1e-3
 #: box patches are split while their diagonal exceeds this times their distance to a mirror, down
 #: to REFINE_MIN_MM: the mirror's shadow on the wall behind it and the view it hides from the
 #: surfaces around it.  Two tubes with a 90 mm mirror strip 40 mm behind each, 120 mm from 45 %
@@ -246,23 +239,6 @@ def refine_near_lamps(ir, patches: Patches, ratio: float | None = None,
     Pall = np.concatenate(done_p)
     return Patches(Pall, np.concatenate(done_n), quad_areas(Pall), np.concatenate(done_m),
                    np.concatenate(done_s))
-
-
-def _round_number(v: float) -> float:
-    """``v`` on a grid of relative steps :data:`TRANSPORT_PARAM_STEP` (absolute steps of
-    :data:`TRANSPORT_PARAM_FLOOR` near 0)."""
-    if abs(v) < TRANSPORT_PARAM_FLOOR / TRANSPORT_PARAM_STEP:
-        return round(v / TRANSPORT_PARAM_FLOOR) * TRANSPORT_PARAM_FLOOR
-    step = math.log1p(TRANSPORT_PARAM_STEP)
-    return math.copysign(math.exp(round(math.log(abs(v)) / step) * step), v)
-
-
-def _rounded(params, declared=None) -> dict:
-    """Effect parameters (or a lamp override) with every float that differs from the declared
-    one rounded (see _round_number)."""
-    declared = dict(declared or {})
-    return {k: (_round_number(v) if isinstance(v, float) and v != declared.get(k) else v)
-            for k, v in dict(params or {}).items()}
 
 
 def _concat_patches(parts) -> Patches:
@@ -768,7 +744,13 @@ class RadiosityTransport:
             # not tell a face from its back, and the plate is no blocker (light crossing it is the
             # line factor below), so the ceiling would see the bottom face through the plate
             if self._plate_faces is not None:
-                F = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres), 0.0, F)
+                # kept with the form factors: every evaluation of a fit builds its transport anew
+                sk = key + ("plate_faces_seen", self._body_sig if self.bodies else None,
+                            self._plate_faces.tobytes())
+                if sk not in ctx.cache:
+                    ctx.cache[sk] = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres),
+                                             0.0, F)
+                F = ctx.cache[sk]
             self._F = F
         return self._F
 
@@ -779,14 +761,12 @@ class RadiosityTransport:
         if self.plate_T is None:
             return None
         if self._cross_pp is None:
-            from .geometry import segment_hits_rectangle
-
             d = self.plate_ir.diffuser
             ck = self._patch_key + ("plate_cross", d.ior, json.dumps(d.scattering, sort_keys=True),
                                     float(np.mean(d.transmittance.array_1nm)))
             if ck not in self.ctx.cache:
                 c = self.patches.centres
-                self.ctx.cache[ck] = self._plate_line_factor(c, c, segment_hits_rectangle(c, c, self.plate_rect))
+                self.ctx.cache[ck] = self._plate_line_factor(c, c)
             self._cross_pp = self.ctx.cache[ck]
         return self._cross_pp
 
@@ -832,36 +812,24 @@ class RadiosityTransport:
         return terms, E0
 
     def _transport_model(self):
-        """The model whose lamp light lights the patches: this one with every fitted number that
-        shapes lamp light (effect parameters, lamp σ overrides) rounded to
-        :data:`TRANSPORT_PARAM_STEP` (relative; steps of :data:`TRANSPORT_PARAM_FLOOR` below it).
+        """The model whose lamp light lights the patches: this one, its lamps integrated over at
+        most :data:`TRANSPORT_LAMP_POINTS` points (the near-field rule refines them where a patch
+        is close), not the readings' ``point_sources``.
 
-        Light reaching the walls changes smoothly with those numbers and reaches a reading only
-        after a bounce, so a fit re-evaluates it when a parameter moves by a step, not at every
-        evaluation (a 2 % change of a beam's σ or an opening changes the inter-reflected light
-        by a fraction of a percent of itself); the readings' direct light always sees the exact
-        parameters.  Its lamps are integrated over at most :data:`TRANSPORT_LAMP_POINTS`
-        points (the near-field rule refines them where a patch is close), not the readings'
-        ``point_sources``."""
+        Its parameters are the fit's own, exact: the light reaching the patches, and through
+        them the readings, is continuous in every fitted number.  (It followed them in 2 %
+        steps once, to spare a fit re-evaluating it: an opal plate's fitted transmittance then
+        stepped the readings by 0.18 % at a step's edge, so that on the aperture booth a forward
+        difference of 0.01 % straddling one read 6.5 χ² units, and the plate's refits took half
+        as many evaluations again and twice the time.)"""
         m = self.model
-        # numbers as the booth declares them stay exact: only what a fit moves is rounded
-        eff = {eid: (_rounded(p, m.ir.effects.get(eid)) if changes_lamp_light(eid) else p)
-               for eid, p in m.effects.items()}
-        lo = {lid: _rounded(o) for lid, o in m.ctx.lamp_overrides.items()}
         opts = replace(m.options, lamp_points=TRANSPORT_LAMP_POINTS)
-        if eff == m.effects and lo == m.ctx.lamp_overrides and opts == m.options:
+        if opts == m.options:
             return m
-        from pydantic import ValidationError
-
-        from lbscene.engine.files.diagnostics import LbsceneUserError
         from .forward import ForwardModel
 
-        try:
-            return ForwardModel(m.ir, m.lighting, effects=eff, lamp_overrides=lo, options=opts,
-                                cache=m.ctx.cache)
-        except (ValidationError, LbsceneUserError):   # rounded past a parameter's bound: exact, then
-            return ForwardModel(m.ir, m.lighting, effects=m.effects, lamp_overrides=m.ctx.lamp_overrides,
-                                options=opts, cache=m.ctx.cache)
+        return ForwardModel(m.ir, m.lighting, effects=m.effects, lamp_overrides=m.ctx.lamp_overrides, options=opts,
+                            cache=m.ctx.cache)
 
     def _F_past_bodies(self, F: np.ndarray) -> np.ndarray:
         """``F`` times the fraction of each pair's mutual view that no body crosses.
@@ -1265,7 +1233,42 @@ class RadiosityTransport:
         c, n = self.patches.centres, self.patches.normals
         return ((P[:, None, :] - c[None, :, :]) * n[None, :, :]).sum(-1) > 0
 
-    def _plate_line_factor(self, A, B, cross) -> np.ndarray:
+    def _behind_plate_faces(self, P) -> np.ndarray:
+        """(len(P), patches): patch ``j`` is a face of the plate that point ``P[i]`` sees from
+        behind (geometry, kept for the last few point sets)."""
+        store = self.ctx.cache.setdefault("_plate_faces_behind", {})
+        key = (self._patch_key, array_key(P, self._plate_faces))
+        hit = store.get(key)
+        if hit is None:
+            hit = self._plate_faces[None, :] & ~self._in_front(P)
+            while len(store) >= PLATE_LINE_SETS:
+                store.pop(next(iter(store)))
+            store[key] = hit
+        return hit
+
+    def _plate_lines(self, A, B) -> tuple[np.ndarray, np.ndarray]:
+        """``(flat indices, cosines)``: the lines between points ``B[j]`` and ``A[i]`` that cross
+        the plate (entries of an ``(len(A), len(B))`` array) and their cosines with its normal.
+        Geometry: kept for the last :data:`PLATE_LINE_SETS` point sets, as a fit moving the
+        plate's transmittance or diffuse fraction asks for the same lines at every step."""
+        from .geometry import segment_hits_rectangle
+
+        r = self.plate_rect
+        key = array_key(A, B, r.centre, r.normal, r.u, np.asarray(r.half, float),
+                        np.asarray(r.hole_half if r.hole_half is not None else (), float))
+        store = self.ctx.cache.setdefault("_plate_lines", {})
+        hit = store.pop(key, None)
+        if hit is None:
+            flat = np.flatnonzero(segment_hits_rectangle(B, A, r))
+            d = A[flat // len(B)] - B[flat % len(B)]
+            cos = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+            hit = (flat, cos)
+            while len(store) >= PLATE_LINE_SETS:
+                store.pop(next(iter(store)))
+        store[key] = hit                       # the most recently used last
+        return hit
+
+    def _plate_line_factor(self, A, B) -> np.ndarray:
         """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,
         else minus the plate's directional transmittance at the line's incidence relative to
         normal incidence (the sign bit marks a crossing, −0 where nothing crosses along lines:
@@ -1275,9 +1278,10 @@ class RadiosityTransport:
         face to face, :meth:`_plate_coupling`)."""
         from .plates import plate_line_relative
 
-        d = A[:, None, :] - B[None, :, :]
-        cos = np.abs(d[..., 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-        return np.where(cross, -plate_line_relative(self.plate_ir, cos), 1.0)
+        flat, cos = self._plate_lines(A, B)
+        out = np.ones((len(A), len(B)))
+        out.flat[flat] = -plate_line_relative(self.plate_ir, cos)
+        return out
 
     def _crossed(self, M, S, T):
         """``M`` with the entries whose lines cross the plate (``S`` negative or −0) times ``T·|S|``."""
@@ -1498,10 +1502,7 @@ class RadiosityTransport:
         plate)."""
         if self.plate_T is None:
             return None
-        from .geometry import segment_hits_rectangle
-
-        cross = segment_hits_rectangle(self.patches.centres, P_rx, self.plate_rect)   # (M, P)
-        return self._plate_line_factor(P_rx, self.patches.centres, cross)
+        return self._plate_line_factor(P_rx, self.patches.centres)
 
     def _use_solution(self, P_rx) -> bool:
         """Whether the receivers ``P_rx`` get their light from the patch radiosity (solved here, or
@@ -1649,7 +1650,7 @@ class RadiosityTransport:
         if Vb is not None:
             G = G * Vb
         if self._plate_faces is not None:
-            G = np.where(self._plate_faces[None, :] & ~self._in_front(P), 0.0, G)
+            G = np.where(self._behind_plate_faces(P), 0.0, G)
         img = self._receiver_images(P, N, meter) if self._mirror else None
         mimg = self._receiver_mirror_images(P, N, meter)
         if self._use_solution(P):
@@ -1670,6 +1671,8 @@ class RadiosityTransport:
 LOW_RANK_MAX_FRACTION = 0.75
 #: factored band classes kept as starting points of low-rank updates (besides the solver store)
 LOW_RANK_BASES = 16
+#: point sets whose lines across the plate are kept (:meth:`RadiosityTransport._plate_lines`)
+PLATE_LINE_SETS = 16
 
 
 class _LUSolver:
