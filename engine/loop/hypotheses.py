@@ -487,6 +487,25 @@ def _own_choices(H, params, p, xs, values) -> list[dict[str, float]]:
 JOINT_POINTS = 9
 
 
+def _diagonal_cross_term(a, b, values, sa, sb, byname, at, infl) -> float | None:
+    """The cross term :math:`c` of :math:`Δχ^2 \\approx \\mathrm{infl}\\,(u^2 + 2 c\\,u v + v^2)`
+    (units of the conditional uncertainties, the axes' curvature the 1-D profiles') from the
+    refits at both diagonals :math:`(±1, +1)`, least squares; None when neither can be refitted
+    inside the bounds.  :math:`|c| \\ge 1`: a ridge; else the pair's correlation is :math:`-c`."""
+    best = float(at(values)[2].chi2)
+    num = den = 0.0
+    for sign in (1.0, -1.0):
+        ta = float(np.clip(values[a] + sign * sa, *byname[a].bounds))
+        tb = float(np.clip(values[b] + sb, *byname[b].bounds))
+        u, w = (ta - values[a]) / sa, (tb - values[b]) / sb
+        if abs(u * w) < 1e-9:
+            continue
+        y = (float(at({**values, a: ta, b: tb})[2].chi2) - best) / infl - u * u - w * w
+        num += y * 2.0 * u * w
+        den += 4.0 * u * u * w * w
+    return num / den if den > 0 else None
+
+
 def joint_profile(params, values, sig, seen, at, infl) -> dict:
     """Joint uncertainty of each pair of profiled properties the 1-D profiles pin.
 
@@ -505,9 +524,13 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
 
     and the marginal uncertainties are :math:`σ_a \\sqrt{Σ_{uu}}`, :math:`σ_b \\sqrt{Σ_{vv}}`,
     their correlation :math:`ρ = Σ_{uv}/\\sqrt{Σ_{uu} Σ_{vv}}`.  A Hessian that is not
-    positive definite, or whose marginal uncertainty exceeds a bound's range, is a ridge: the pair
-    is an unidentified combination (``sigma`` None).  ``range`` gives each property's extent in
-    the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
+    positive definite, or whose marginal uncertainty exceeds a bound's range, is a ridge — unless
+    the nearest refits lie where :math:`χ^2` is no quadratic (a minimum sharper than their
+    spacing, a mirror's distance): then the axes' curvature of the 1-D profiles with the cross
+    term of the refits at both diagonals (:func:`_diagonal_cross_term`) decides, and a pair whose
+    cross term is under one in size gets its marginal uncertainties from that quadratic
+    (``from_axes``).  A ridge is an unidentified combination (``sigma`` None).  ``range`` gives
+    each property's extent in the region the quadratic allows within the bounds, :math:`χ^2 - χ^2_\\text{min} \\le 4
     \\max(1, χ^2_\\text{min}/ν)` (about two standard uncertainties); for a ridge, the extent of
     the refits themselves within that :math:`Δχ^2` of the best.  Properties whose optimum lies at an end of
     their grid (one-sided uncertainty) are left out by :func:`profile_geometry`.
@@ -571,6 +594,21 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
                     # refits' spacing (a mirror's distance), not a ridge: the 1-D uncertainties stand
                     out[(a, b)] = {"rho": None, "sigma": {a: sa, b: sb}, "range": rng, "sharp": True}
                     continue
+                # the nearest refits may lie where χ² is no quadratic (a minimum sharper than
+                # their spacing): the quadratic the 1-D profiles give along the axes, with the cross
+                # term both diagonals at one uncertainty give, tells a ridge from such a minimum
+                cross = _diagonal_cross_term(a, b, values, sa, sb, byname, at, infl)
+                if cross is not None and abs(cross) < 1.0:
+                    S = np.linalg.inv(np.array([[1.0, cross], [cross, 1.0]]))
+                    if sa * math.sqrt(S[0, 0]) < hi_a - lo_a and sb * math.sqrt(S[1, 1]) < hi_b - lo_b:
+                        q = infl * (U * U + 2.0 * cross * U * W + W * W)
+                        ok = q <= 4.0 * infl
+                        rng = {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
+                               b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
+                        out[(a, b)] = {"rho": float(-cross), "sigma": {a: sa * math.sqrt(S[0, 0]),
+                                                                       b: sb * math.sqrt(S[1, 1])},
+                                       "range": rng, "from_axes": True}
+                        continue
                 out[(a, b)] = {"rho": None, "sigma": {a: None, b: None}, "range": rng}
                 continue
             out[(a, b)] = {"rho": float(S[0, 1] / math.sqrt(S[0, 0] * S[1, 1])),

@@ -402,6 +402,33 @@ def test_two_properties_that_trade_off_get_their_joint_uncertainty():
     assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(4.0, rel=1e-6)
 
 
+def test_a_minimum_sharper_than_the_refits_spacing_is_no_ridge():
+    """χ² = 10 + dᵀ C⁻¹ d (σ = (30, 10) mm, correlation −0.5 about (150, 20)) up to Δχ² = 9, and
+    40 times steeper beyond (a mirror's distance: a minimum narrower than the grid's steps).  The
+    profile's nearest refits reach beyond that, so no quadratic goes through them; the 1-D
+    profiles' curvature (their three best points lie inside) with the refits at both diagonals
+    gives back the marginal σ and ρ, not "an unidentified combination"."""
+    C = np.array([[900.0, -0.5 * 30 * 10], [-0.5 * 30 * 10, 100.0]])
+    Ci = np.linalg.inv(C)
+
+    def chi2(v):
+        d = np.array([v["opening_v_mm"] - 150.0, v["gap_mm"] - 20.0])
+        q = float(d @ Ci @ d)
+        return 10.0 + (q if q <= 9.0 else 9.0 + 40.0 * (q - 9.0))
+
+    def R(v):
+        return _ToyFit(v, chi2)
+
+    H = _toy_hypothesis(*_PAIR)
+    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
+    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
+    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    assert j["rho"] == pytest.approx(-0.5, abs=1e-6)
+    assert j["sigma"]["opening_v_mm"] == pytest.approx(30.0, rel=1e-6)
+    assert j["sigma"]["gap_mm"] == pytest.approx(10.0, rel=1e-6)
+    assert fit.stderr["hypothesis.toy.gap_mm"] == pytest.approx(10.0, rel=1e-6)
+
+
 def test_two_properties_on_a_ridge_are_an_unidentified_combination():
     """χ² = 10 + ((θ_a − 20)/4 + (θ_b − 150)/20)², profiled from (150, 20): only the combination is
     pinned.  The pair is said to be unidentified, with the extent of the refits within Δχ² = 4
