@@ -365,13 +365,14 @@ def model_code_digest(ir) -> str:
 
 
 def _vertex_irradiance_bands(ir, lighting, points, normals, cell_mm: float) -> np.ndarray:
-    """:func:`_irradiance_bands`, kept in the disk cache (key: the receivers, the IR's content
-    hash, the lighting, the interpolation cell and :func:`model_code_digest`): the same booth
-    and view in a later process costs a file read instead of the forward model."""
+    """:func:`_irradiance_bands`, kept in the disk cache (key: the receivers, the IR's
+    :attr:`~lbscene.engine.scene.ir.SceneIR.light_hash`, the lighting, the interpolation cell and
+    :func:`model_code_digest`): the same booth and view in a later process costs a file read
+    instead of the forward model."""
     from lbscene.engine.files.disk_cache import cached_array
 
     return cached_array("vertex_irradiance", (np.asarray(points, float), np.asarray(normals, float)),
-                        (ir.content_hash, lighting, float(cell_mm), model_code_digest(ir)),
+                        (ir.light_hash, lighting, float(cell_mm), model_code_digest(ir)),
                         lambda: _irradiance_bands(ir, lighting, points, normals, cell_mm),
                         shape=(len(points), ir.grid.count), shipped=True)
 
@@ -386,7 +387,7 @@ def _irradiance_1nm(ir, lighting, point, normal) -> np.ndarray:
     from lbscene.engine.spectra.bands import REFERENCE_WAVELENGTHS_NM
 
     return cached_array("point_irradiance_1nm", (np.asarray(point, float), np.asarray(normal, float)),
-                        (ir.content_hash, lighting, model_code_digest(ir)), compute,
+                        (ir.light_hash, lighting, model_code_digest(ir)), compute,
                         shape=(REFERENCE_WAVELENGTHS_NM.size,), shipped=True)
 
 

@@ -80,6 +80,23 @@ class ForwardOptions:
     lamp_points: int | None = None
 
 
+def _changing_overrides(ir, lamp_overrides: dict | None) -> dict:
+    """The lamp overrides that change a lamp: a ``sigma_deg`` equal to that of the Gaussian
+    profile the lamp declares is the lamp as declared, and is dropped, so that light stored for the
+    declared booth (the disk cache, the shipped tables) is read under the same key (a fit starts
+    at the declared values: its first evaluation is the declared booth's)."""
+    out = {}
+    for lid, over in (lamp_overrides or {}).items():
+        lamp = next((lp for lp in ir.lamps if lp.id == lid), None)
+        prof = dict(lamp.profile or {}) if lamp is not None else {}
+        kept = {k: v for k, v in dict(over or {}).items()
+                if not (k == "sigma_deg" and prof.get("type") == "gaussian" and v is not None
+                        and float(prof.get("sigma_deg", float("nan"))) == float(v))}
+        if kept:
+            out[lid] = kept
+    return out
+
+
 @dataclass
 class Term:
     """One contribution: transfer × spectrum.
@@ -311,7 +328,7 @@ class ForwardModel:
                     "LB104", f"effects[{eid!r}]{'.' + where if where else ''}: {err['msg']}",
                     value=repr(p)[:80], expected=f"the parameters of effect {eid!r} (lbscene effects)") from None
         self.options = options or ForwardOptions()
-        self.ctx = ForwardContext(ir, self.lighting, self.effects, dict(lamp_overrides or {}),
+        self.ctx = ForwardContext(ir, self.lighting, self.effects, _changing_overrides(ir, lamp_overrides),
                                   self.options, cache if cache is not None else {})
         self._enabled = sorted(((get_effect(eid), effect_params(get_effect(eid), p))
                                 for eid, p in self.effects.items()),

@@ -748,8 +748,7 @@ class RadiosityTransport:
                 sk = key + ("plate_faces_seen", self._body_sig if self.bodies else None,
                             self._plate_faces.tobytes())
                 if sk not in ctx.cache:
-                    ctx.cache[sk] = np.where(self._plate_faces[None, :] & ~self._in_front(self.patches.centres),
-                                             0.0, F)
+                    ctx.cache[sk] = np.where(self._behind_plate_faces(self.patches.centres), 0.0, F)
                 F = ctx.cache[sk]
             self._F = F
         return self._F
@@ -1174,13 +1173,15 @@ class RadiosityTransport:
 
     def _solution_params(self) -> tuple:
         """What the patch radiosity is computed from, as plain values (the key of its disk cache
-        entry and shipped table): the booth's content, the lighting, every effect's parameters
+        entry and shipped table): the booth's content (:attr:`~lbscene.engine.scene.ir.SceneIR.light_hash`:
+        not the colour data derived from it, whose last digit is the machine's), the lighting,
+        every effect's parameters
         and the lamp overrides of the model lighting the patches, its options, and the light
         model's code.  All of it reproducible from the booth file on any machine."""
         from .code_digest import light_code_digest
 
         tm = self._transport_model()
-        return ("patch_radiosity-1", self.ctx.ir.content_hash, tm.lighting,
+        return ("patch_radiosity-1", self.ctx.ir.light_hash, tm.lighting,
                 json.dumps(tm.effects, sort_keys=True, default=str),
                 json.dumps(tm.ctx.lamp_overrides, sort_keys=True, default=str),
                 repr(tm.options), light_code_digest(self.ctx.ir))
@@ -1235,16 +1236,10 @@ class RadiosityTransport:
 
     def _behind_plate_faces(self, P) -> np.ndarray:
         """(len(P), patches): patch ``j`` is a face of the plate that point ``P[i]`` sees from
-        behind (geometry, kept for the last few point sets)."""
-        store = self.ctx.cache.setdefault("_plate_faces_behind", {})
-        key = (self._patch_key, array_key(P, self._plate_faces))
-        hit = store.get(key)
-        if hit is None:
-            hit = self._plate_faces[None, :] & ~self._in_front(P)
-            while len(store) >= PLATE_LINE_SETS:
-                store.pop(next(iter(store)))
-            store[key] = hit
-        return hit
+        behind (geometry, kept for the last :data:`PLATE_LINE_SETS` point sets)."""
+        c, n = self.patches.centres, self.patches.normals
+        return self.ctx.memo("plate_faces_behind", (P, self._plate_faces, c, n),
+                             lambda: self._plate_faces[None, :] & ~self._in_front(P), limit=PLATE_LINE_SETS)
 
     def _plate_lines(self, A, B) -> tuple[np.ndarray, np.ndarray]:
         """``(flat indices, cosines)``: the lines between points ``B[j]`` and ``A[i]`` that cross
@@ -1254,19 +1249,15 @@ class RadiosityTransport:
         from .geometry import segment_hits_rectangle
 
         r = self.plate_rect
-        key = array_key(A, B, r.centre, r.normal, r.u, np.asarray(r.half, float),
-                        np.asarray(r.hole_half if r.hole_half is not None else (), float))
-        store = self.ctx.cache.setdefault("_plate_lines", {})
-        hit = store.pop(key, None)
-        if hit is None:
+
+        def compute():
             flat = np.flatnonzero(segment_hits_rectangle(B, A, r))
             d = A[flat // len(B)] - B[flat % len(B)]
-            cos = np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-            hit = (flat, cos)
-            while len(store) >= PLATE_LINE_SETS:
-                store.pop(next(iter(store)))
-        store[key] = hit                       # the most recently used last
-        return hit
+            return flat, np.abs(d[:, 2]) / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
+
+        hole = np.asarray(r.hole_half if r.hole_half is not None else (), float)
+        return self.ctx.memo("plate_lines", (A, B, r.centre, r.normal, r.u, np.asarray(r.half, float), hole),
+                             compute, limit=PLATE_LINE_SETS)
 
     def _plate_line_factor(self, A, B) -> np.ndarray:
         """(len(A), len(B)): 1 where the line between points ``A[i]`` and ``B[j]`` misses the plate,

@@ -282,6 +282,18 @@ class SceneIR(_IR):
         """sha256 of the canonical JSON (hex).  Not cached: ``model_copy`` would carry a stale one."""
         return hashlib.sha256(self.to_json().encode()).hexdigest()
 
+    @property
+    def light_hash(self) -> str:
+        """sha256 (hex) of what the light depends on: the canonical JSON without the colour data
+        the compiler derives from it (the materials' ``reflectance_bands_by_lighting``, a
+        projection whose last digit depends on the machine's linear algebra: the SpectraLight's
+        grey under UV light is 0.4289462734 on one processor and …733 on another).  The key of
+        the light kept across processes and machines (the disk cache, the shipped tables)."""
+        d = self.model_dump(mode="json")
+        for m in d["materials"].values():
+            m.pop("reflectance_bands_by_lighting", None)
+        return hashlib.sha256(canonical_json(d).encode()).hexdigest()
+
     # ------------------------------------------------------------------ lookups
     @cached_property
     def grid(self):

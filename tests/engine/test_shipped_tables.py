@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -81,6 +82,40 @@ def test_the_first_compare_on_the_a3_grid_reads_the_tables(booth, monkeypatch):
     lighting = next(iter(ir.lighting))         # every lighting: scripts/make_tables.py --check (slow)
     E = ForwardModel(ir, lighting).illuminance_lx(a3_grid())
     assert E.shape == (55,) and np.all(E > 0)
+
+
+def test_a_booths_light_key_is_the_same_under_another_processors_linear_algebra():
+    """The light's key does not hold what the compiler derives for colour: the SpectraLight's grey
+    under UV light projects to 0.4289462734 with one OpenBLAS kernel and …733 with another, which
+    kept every table of that booth from another machine (its whole IR hash changed)."""
+    code = ("from lbscene.engine.scene.compile import compile_booth; from pathlib import Path; "
+            f"ir = compile_booth(Path({str(REPO / 'booths' / 'xrite-spectralight-qc')!r})); "
+            "print(ir.light_hash, ir.content_hash)")
+    out = []
+    for core in ("Haswell", "SkylakeX"):
+        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                           env={**os.environ, "OPENBLAS_CORETYPE": core})
+        out.append(p.stdout.split())
+    assert out[0][0] == out[1][0]
+
+
+def test_the_first_compare_of_a_declared_booth_reads_its_patch_light(monkeypatch, tmp_path):
+    """``compare``'s first evaluation is the declared booth (its fit starts there): the lamps'
+    profile widths it passes as overrides equal the declared ones and find the shipped patch
+    radiosity (they missed it: 25 s of the README walkthrough's first minute)."""
+    from lbscene.engine.light import radiosity
+    from lbscene.engine.loop.compare import run_compare
+
+    monkeypatch.setenv("LBSCENE_CACHE_DIR", "off")
+    monkeypatch.delenv("LBSCENE_SHIPPED_TABLES", raising=False)
+
+    def computed(*a, **k):
+        raise AssertionError("the patch radiosity was computed")
+
+    monkeypatch.setattr(radiosity.RadiosityTransport, "_solve_now", computed)
+    r = run_compare(REPO / "examples" / "walkthrough-spectralight-d65" / "measurements.yaml", history=False,
+                    fit=False, do_diagnose=False)
+    assert r.fit.lux_pred is not None and np.all(r.fit.lux_pred > 0)
 
 
 def test_the_tables_are_off_when_asked(monkeypatch):
