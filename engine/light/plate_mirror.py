@@ -112,13 +112,21 @@ def _on_face(p: np.ndarray, face, margin=0.0) -> np.ndarray:
     return (np.abs(x) <= face.half[0] + margin) & (np.abs(y) <= face.half[1] + margin)
 
 
-def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris) -> np.ndarray:
-    """Bool per path ``a → p → b_real``: no body and no mesh triangle crosses either leg."""
+def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris, near=None) -> np.ndarray:
+    """Bool per path ``a → p → b_real``: no body and no mesh triangle crosses either leg.
+    ``near``: ``(near_a, near_b)``, per body a bool per path, False where that body certainly
+    misses the leg ``a → p`` (``near_a``) or ``p → b_real`` (``near_b``): only the others are tested."""
     ok = np.ones(len(a), bool)
-    if bodies:
+    if bodies and near is None:
         ok &= ~bodies_block(a, p, bodies)
         live = np.nonzero(ok)[0]
         ok[live] &= ~bodies_block(p[live], b_real[live], bodies)
+    elif bodies:
+        for start, end, masks in ((a, p, near[0]), (p, b_real, near[1])):
+            for body, m in zip(bodies, masks):
+                live = np.nonzero(ok & m)[0]
+                if live.size:
+                    ok[live] &= ~bodies_block(start[live], end[live], [body])
     if tris is not None and len(tris):
         live = np.nonzero(ok)[0]
         ok[live] &= ~segments_blocked(a[live], p[live], tris)
@@ -128,28 +136,36 @@ def _legs_clear(a: np.ndarray, b_real: np.ndarray, p: np.ndarray, bodies, tris) 
 
 
 def _uncertain(ca, r_a, cb_img, r_b, face, bodies, tris):
-    """Bool per pair (receiving point/patch ``ca`` of radius ``r_a``, image centre ``cb_img`` of
-    radius ``r_b``): may its lines meet the face's edge, a body or a mesh (then sampled), or is
-    the centre line's verdict the whole pair's?"""
+    """``(uncertain, near)``: bool per pair (receiving point/patch ``ca`` of radius ``r_a``, image
+    centre ``cb_img`` of radius ``r_b``): may its lines meet the face's edge, a body or a mesh
+    (then sampled), or is the centre line's verdict the whole pair's?  ``near``: ``(near_a,
+    near_b)``, per body a bool per pair, False where no line of the pair can meet that body on
+    its leg to the face or from the face (None with meshes: every body is tested)."""
     p = _cross_face(ca, cb_img, face)
     m = np.maximum(r_a, r_b)
     inner = _on_face(p, face, -m)
     outer = _on_face(p, face, m)
     unc = outer & ~inner
     if tris is not None and len(tris):
-        return unc | outer
+        return unc | outer, None
+    near = None
     if bodies:
         cb = mirror_points(cb_img, face.centre, face.normal)
-        for near in pairs_near_bodies(bodies, ca, p, r_a, m):
-            unc[near] = True
-        for near in pairs_near_bodies(bodies, p, cb, m, r_b):
-            unc[near] = True
-    return unc & outer
+        near = ([], [])
+        for legs, hits in ((near[0], pairs_near_bodies(bodies, ca, p, r_a, m)),
+                           (near[1], pairs_near_bodies(bodies, p, cb, m, r_b))):
+            for idx in hits:
+                unc[idx] = True
+                mask = np.zeros(len(p), bool)
+                mask[idx] = True
+                legs.append(mask)
+    return unc & outer, near
 
 
-def _visible_share(A, W, B_img, face, bodies, tris):
+def _visible_share(A, W, B_img, face, bodies, tris, near=None):
     """Weighted share (per pair) of matched lines ``A[k, s] → B_img[k, s]`` (weights ``W[k, s]``)
-    that meet the face's plane on the face with both legs clear."""
+    that meet the face's plane on the face with both legs clear (``near``: per body and leg, the
+    pairs whose lines may meet it, :func:`_uncertain`)."""
     k, s = A.shape[:2]
     a = A.reshape(-1, 3)
     b = B_img.reshape(-1, 3)
@@ -158,7 +174,9 @@ def _visible_share(A, W, B_img, face, bodies, tris):
     real = mirror_points(b, face.centre, face.normal)
     live = np.nonzero(ok)[0]
     if live.size:
-        ok[live] = _legs_clear(a[live], real[live], p[live], bodies, tris)
+        pair = live // s                    # the pair of each line that meets the face
+        lines = None if near is None else tuple([m[pair] for m in leg] for leg in near)
+        ok[live] = _legs_clear(a[live], real[live], p[live], bodies, tris, lines)
     return (ok.reshape(k, s) * W).sum(axis=1)
 
 
@@ -222,15 +240,17 @@ def face_image_factors(patches: Patches, faces, bodies=(), tris=None) -> tuple[n
             vals[near] = (fp.reshape(-1, 4) * w[a]).sum(axis=1)
         # the share of each pair's lines that meet the face with both legs clear
         V = _on_face(_cross_face(c[side][ii], ic[jj], face), face).astype(float)
-        unc = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], face, bodies, tris)
+        unc, near = _uncertain(c[side][ii], hd[side][ii], ic[jj], hd[side][jj], face, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_PAIR_POINTS
-            pa, wa = quad_r2_points(polys[side][ii[k]], m)
-            pb = quad_r2_points(ip[jj[k]], m)[0][:, ::-1]
-            pa = pa + _NUDGE_MM * nrm[side][ii[k]][:, None, :]
-            pb = pb + _NUDGE_MM * inrm[jj[k]][:, None, :]
-            V[k] = _visible_share(pa, wa, pb, face, bodies, tris)
+            # each patch's points and each image's once (a patch is in many pairs)
+            pts_a, w_a = quad_r2_points(polys[side], m)
+            pts_b = quad_r2_points(ip, m)[0]
+            pa = pts_a[ii[k]] + _NUDGE_MM * nrm[side][ii[k]][:, None, :]
+            pb = pts_b[jj[k]][:, ::-1] + _NUDGE_MM * inrm[jj[k]][:, None, :]
+            sub = None if near is None else tuple([msk[k] for msk in leg] for leg in near)
+            V[k] = _visible_share(pa, w_a[ii[k]], pb, face, bodies, tris, sub)
         d = c[side][ii] - ic[jj]
         np.add.at(F, (side[ii], side[jj]), vals * V)
         C[side[ii], side[jj]] = np.abs(d @ fn) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
@@ -272,14 +292,15 @@ def face_receiver_factors(patches: Patches, faces, P, N, gather, bodies=(), tris
             continue
         jj = cols[jc]
         V = _on_face(_cross_face(P[rx][ii], ic[jj], face), face).astype(float)
-        unc = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], face, bodies, tris)
+        unc, near = _uncertain(P[rx][ii], np.zeros(ii.size), ic[jj], hd[side][jj], face, bodies, tris)
         if unc.any():
             k = np.nonzero(unc)[0]
             m = IMAGE_GATHER_POINTS
-            pb, wb = quad_r2_points(ip[jj[k]], m)
-            pb = pb + _NUDGE_MM * inrm[jj[k]][:, None, :]
+            pts_b, w_b = quad_r2_points(ip, m)              # each image's points once
+            pb = pts_b[jj[k]] + _NUDGE_MM * inrm[jj[k]][:, None, :]
             pa = np.broadcast_to(P[rx][ii[k]][:, None, :], pb.shape)
-            V[k] = _visible_share(pa, wb, pb, face, bodies, tris)
+            sub = None if near is None else tuple([msk[k] for msk in leg] for leg in near)
+            V[k] = _visible_share(pa, w_b[jj[k]], pb, face, bodies, tris, sub)
         d = P[rx][ii] - ic[jj]
         np.add.at(G, (rx[ii], side[jj]), g[ii, jc] * V)
         C[rx[ii], side[jj]] = np.abs(d @ fn) / np.maximum(np.linalg.norm(d, axis=1), 1e-12)

@@ -127,3 +127,35 @@ def test_a_body_between_the_plate_and_a_patch_hides_its_image():
     assert F1[centre, centre] == 0.0 and F0[centre, centre] > 0
     far = int(np.argmax(np.linalg.norm(ceiling.centres[:, :2] - c[:2], axis=1)))
     assert F0[centre, far] > 0 and F1[centre, far] == pytest.approx(F0[centre, far])
+
+
+def test_bodies_are_tested_only_where_they_may_block_and_the_images_do_not_change(monkeypatch):
+    """A body is tested only against the lines of the pairs that may pass near it (the same
+    conservative test that marks a pair for sampling): with five capsules among the patches,
+    the images' form factors and the receivers' are exactly those of testing every body."""
+    from lbscene.engine.light import plate_mirror
+
+    ceiling = _ceiling(H_MM, np.arange(-90.0, 91.0, 20.0))
+    rng = np.random.default_rng(7)
+    bodies = []
+    for _ in range(5):
+        c = np.r_[rng.uniform(-80, 80, 2), rng.uniform(0.2, 0.8) * H_MM]
+        d = np.r_[rng.normal(size=2), 0.0]
+        d = 40.0 * d / np.linalg.norm(d)
+        bodies.append(Capsule(c - d, c + d, float(rng.uniform(3.0, 12.0))))
+    P = np.c_[rng.uniform(-80, 80, (12, 2)), np.full(12, 0.3 * H_MM)]
+    N = np.tile([0.0, 0.0, -1.0], (12, 1))               # facing the plate
+
+    def gather(polys, normals, rows):
+        return polygon_form_factor(P[rows], N[rows], polys, normals)
+
+    F, _ = patch_image_factors(ceiling, _ir(), bodies)
+    G, _ = receiver_image_factors(ceiling, _ir(), P, N, gather, bodies)
+    every = plate_mirror._uncertain
+    monkeypatch.setattr(plate_mirror, "_uncertain", lambda *a: (every(*a)[0], None))
+    F_all, _ = patch_image_factors(ceiling, _ir(), bodies)
+    G_all, _ = receiver_image_factors(ceiling, _ir(), P, N, gather, bodies)
+    assert G.any() and np.array_equal(F, F_all) and np.array_equal(G, G_all)
+    # the bodies hide something: the test compares images that the bodies shape
+    F0, _ = patch_image_factors(ceiling, _ir())
+    assert (F < F0 - 1e-12).any()
