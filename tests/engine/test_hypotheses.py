@@ -48,6 +48,14 @@ _PAIR = (GeometryParameter("opening_v_mm", (100.0, 150.0, 200.0, 250.0, 300.0), 
          GeometryParameter("gap_mm", (5.0, 20.0, 45.0, 80.0, 130.0), 20.0, (1.0, 130.0)))
 
 
+def _pair_profiled(chi2):
+    """The toy pair profiled from (150, 20) on refits of χ² ``chi2``: ``(fit, joint entry)``."""
+    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
+    _, fit, _, _ = profile_geometry(_toy_hypothesis(*_PAIR), v0, "L", lambda v, start: (None, _ToyFit(v, chi2)),
+                                    _ToyFit(v0, chi2), None)
+    return fit, fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+
+
 def test_filter_basis_is_a_partition_of_unity_over_the_measured_range():
     B = filter_basis(12)
     assert B.shape == (471, 12)
@@ -388,14 +396,7 @@ def test_two_properties_that_trade_off_get_their_joint_uncertainty():
         d = np.array([v["gap_mm"] - 37.0, v["opening_v_mm"] - 200.0])
         return 10.0 + float(d @ Ci @ d)
 
-    def R(v):
-        return _ToyFit(v, chi2)
-
-    H = _toy_hypothesis(*_PAIR)
-
-    _, fit, _, _ = profile_geometry(H, {"opening_v_mm": 150.0, "gap_mm": 20.0}, "L",
-                                    lambda v, start: (None, R(v)), R({"opening_v_mm": 150.0, "gap_mm": 20.0}), None)
-    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    fit, j = _pair_profiled(chi2)
     assert j["rho"] == pytest.approx(-0.8, abs=1e-6)
     assert j["sigma"]["gap_mm"] == pytest.approx(4.0, rel=1e-6)
     assert j["sigma"]["opening_v_mm"] == pytest.approx(20.0, rel=1e-6)
@@ -416,13 +417,7 @@ def test_a_minimum_sharper_than_the_refits_spacing_is_no_ridge():
         q = float(d @ Ci @ d)
         return 10.0 + (q if q <= 9.0 else 9.0 + 40.0 * (q - 9.0))
 
-    def R(v):
-        return _ToyFit(v, chi2)
-
-    H = _toy_hypothesis(*_PAIR)
-    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
-    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
-    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    fit, j = _pair_profiled(chi2)
     assert j["rho"] == pytest.approx(-0.5, abs=1e-6)
     assert j["sigma"]["opening_v_mm"] == pytest.approx(30.0, rel=1e-6)
     assert j["sigma"]["gap_mm"] == pytest.approx(10.0, rel=1e-6)
@@ -437,14 +432,7 @@ def test_two_properties_on_a_ridge_are_an_unidentified_combination():
         t = (v["gap_mm"] - 20.0) / 4.0 + (v["opening_v_mm"] - 150.0) / 20.0
         return 10.0 + t * t
 
-    def R(v):
-        return _ToyFit(v, chi2)
-
-    H = _toy_hypothesis(*_PAIR)
-
-    v0 = {"opening_v_mm": 150.0, "gap_mm": 20.0}
-    _, fit, _, _ = profile_geometry(H, v0, "L", lambda v, start: (None, R(v)), R(v0), None)
-    j = fit.hypothesis_data["joint"]["toy"]["opening_v_mm|gap_mm"]
+    fit, j = _pair_profiled(chi2)
     assert j["rho"] is None and j["sigma"] == {"opening_v_mm": None, "gap_mm": None}
     assert "hypothesis.toy.gap_mm" not in fit.stderr
     (olo, ohi), (glo, ghi) = j["range"]["opening_v_mm"], j["range"]["gap_mm"]
