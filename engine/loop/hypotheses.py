@@ -578,9 +578,13 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
             U, W = np.meshgrid(np.linspace((lo_a - values[a]) / sa, (hi_a - values[a]) / sa, 201),
                                np.linspace((lo_b - values[b]) / sb, (hi_b - values[b]) / sb, 201), indexing="ij")
             q = coef[3] * U * U + coef[4] * U * W + coef[5] * W * W + coef[1] * U + coef[2] * W
-            ok = q <= q.min() + 4.0 * infl
-            rng = {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
-                   b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
+
+            def extent(ok):
+                # each property's extent over the region ``ok`` of the (U, W) mesh
+                return {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
+                        b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
+
+            rng = extent(q <= q.min() + 4.0 * infl)
             Hm = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
             S = 2.0 * infl * np.linalg.inv(Hm) if Hm[0, 0] > 0 and np.linalg.det(Hm) > 0 else None
             if S is None or sa * math.sqrt(S[0, 0]) >= hi_a - lo_a or sb * math.sqrt(S[1, 1]) >= hi_b - lo_b:
@@ -601,10 +605,7 @@ def joint_profile(params, values, sig, seen, at, infl) -> dict:
                 if cross is not None and abs(cross) < 1.0:
                     S = np.linalg.inv(np.array([[1.0, cross], [cross, 1.0]]))
                     if sa * math.sqrt(S[0, 0]) < hi_a - lo_a and sb * math.sqrt(S[1, 1]) < hi_b - lo_b:
-                        q = infl * (U * U + 2.0 * cross * U * W + W * W)
-                        ok = q <= 4.0 * infl
-                        rng = {a: (float(values[a] + sa * U[ok].min()), float(values[a] + sa * U[ok].max())),
-                               b: (float(values[b] + sb * W[ok].min()), float(values[b] + sb * W[ok].max()))}
+                        rng = extent(infl * (U * U + 2.0 * cross * U * W + W * W) <= 4.0 * infl)
                         out[(a, b)] = {"rho": float(-cross), "sigma": {a: sa * math.sqrt(S[0, 0]),
                                                                        b: sb * math.sqrt(S[1, 1])},
                                        "range": rng, "from_axes": True}
