@@ -224,15 +224,14 @@ def test_cli_cross_check_reports_a_failed_cycles_bake_without_a_traceback(run_cl
 SHIPPED = Path(__file__).resolve().parents[2] / "booths"
 #: why the opal-plate booth's bake is not its model (measured: Cycles / model - 1 at final quality)
 _OPAL_SLAB = ("the bake draws the opal plate as the Mitsuba truth does (a slab of a Henyey-Greenstein medium, "
-              "its g from the plane-parallel layer; a collimated beam through it is the layer's within 0.4 %), "
-              "and opal-cavity-45 comes within 1.6 % of the model (it was +9.4 % direct, -17.9 % with "
-              "inter-reflection as a thin sheet), not within the bake's noise: direct -1.56 % (noise 1.49 %, "
-              "-7.0 sigma), inter-reflection -0.73 % (1.00 %, -4.3 sigma) at final quality.  Mitsuba's own slab "
-              "puts the model's direct light 1.0 % high (5 grid points: the model's opal laws); Cycles is 0.36 % "
-              "below Mitsuba at 262144 samples (5 points, both modes, 0.2 to 0.3 % standard error) but 0.8 to 1.0 % "
-              "below the truth at the final preset's 16000 to 29000 samples (55 points, two seeds): a gap "
-              "that shrinks with the samples points to heavy-tailed noise in the light the medium's "
-              "scattering events reach, which the two-half noise estimate does not see (not proven)")
+              "its g from the plane-parallel layer).  At final quality opal-cavity-45's direct light agrees; "
+              "with inter-reflection Cycles / model - 1 = -0.70 % (noise 1.00 %, -4.2 sigma), while Cycles is "
+              "-0.78 % (0.14 %) off the Mitsuba truth and the model -0.08 %.  Not noise: on opal-grey Cycles is "
+              "-0.84 +- 0.20 % off Mitsuba at 32768 samples and -0.67 +- 0.09 % at 131072 (the model +0.35 %).  "
+              "Not the slab's optics: alone in Cycles it is the photon Monte Carlo's layer (a collimated beam at "
+              "0 to 85 degrees; diffuse light with a floor of reflectance 0 and 0.8: +0.08 and +0.09 %, "
+              "test_opal_bake.py).  Not the lamps' sampling: with their next-event estimation off, opal-grey "
+              "is -0.48 +- 0.15 % off Mitsuba.  Where Cycles loses the light in a booth is not traced")
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "validation"
 #: the SpectraLight's inter-reflected light, measured at final quality against two renderers
 _SPECTRALIGHT = ("the model's light with inter-reflection is above Cycles in the SpectraLight at D65: Cycles / model "
