@@ -235,7 +235,7 @@ _OPAL_SLAB = ("the bake draws the opal plate as the Mitsuba truth does (a slab o
 VALIDATION = Path(__file__).resolve().parents[1] / "data" / "validation"
 #: the SpectraLight's inter-reflected light, measured at final quality against two renderers
 _SPECTRALIGHT = ("the model's light with inter-reflection is above Cycles in the SpectraLight at D65: Cycles / model "
-                 "- 1 = -0.54 % at the final preset's 24377 samples (3.5 sigma); its direct light agrees (+0.02 %). "
+                 "- 1 = -0.50 % at the final preset's 24377 samples (3.2 sigma); its direct light agrees (+0.02 %). "
                  "It was -0.74 % (4.8 sigma) while the lamps' images in the glass plate lit the luminaire cavity "
                  "through the D65 boxes' masks (receivers under the plate facing the cavity: the model 11 % high, "
                  "then within 1 %).  With the boxes' walls black and the cavity's ceiling black -0.24 % (1.8 sigma), "
