@@ -138,7 +138,8 @@ def test_the_low_rank_update_of_a_factored_radiosity_matrix_solves_the_moved_one
 def test_a_low_rank_update_keeps_its_patch_sets_rows_with_the_base():
     """An update of most of the patches (60 %: the SpectraLight's ceiling and its cavity's are 51
     %) solves exactly; a later reflectance set on the same patches needs no form factors (the
-    base keeps their rows), and its products of the patch set are made once."""
+    base keeps their rows), its products of the patch set are made once, and so is the base's
+    solution for the same right-hand sides."""
     from scipy.linalg import lu_factor
 
     from lbscene.engine.light.radiosity import LOW_RANK_MAX_FRACTION, _LowRankSolver, _LUSolver
@@ -159,6 +160,15 @@ def test_a_low_rank_update_keeps_its_patch_sets_rows_with_the_base():
         asked.append(1)
         return F
 
+    solved = []
+    plain = base.solve
+
+    def counting(rhs, trans=0):
+        if rhs.shape == b.shape:
+            solved.append(trans)
+        return plain(rhs, trans=trans)
+
+    base.solve = counting
     for value in (0.55, 0.9, 0.3):
         r2 = r.copy()
         r2[moved] = value
@@ -170,6 +180,8 @@ def test_a_low_rank_update_keeps_its_patch_sets_rows_with_the_base():
         assert len(asked) == 1
     kept = base._updates[np.sort(moved).tobytes()]
     assert set(kept) == {"F_S", "P", "Q", "FSP"}
+    # the base solved these right-hand sides once each way, for every reflectance set
+    assert solved == [0, 1]
     # a patch set the base has not seen asks for them
     r3 = r.copy()
     r3[:7] = 0.1
